@@ -1,0 +1,54 @@
+"""veragmil_suite: scooping granular food with a spoon, as a robosuite task plugin."""
+
+from setuptools import find_packages, setup
+
+# Recorded demonstrations replay bit-exactly only on the MuJoCo that recorded them, and robosuite 1.5.2
+# breaks with mujoco >= 3.12: one exact version is pinned.
+MUJOCO_VERSION = "3.3.7"
+
+setup(
+    name="veragmil_suite",
+    version="0.1.0",
+    description="robosuite task plugin for scooping and carrying granular food with a spoon (VERAGMIL on MuJoCo)",
+    python_requires=">=3.10",
+    packages=find_packages(include=["veragmil_suite", "veragmil_suite.*"]) + ["veragmil_suite.assets"],
+    # models/assets stays at the repository's top level and is installed as the package data
+    # of veragmil_suite.assets, so a non-editable install finds it from any directory.
+    package_dir={"veragmil_suite.assets": "models/assets"},
+    package_data={"veragmil_suite.assets": ["**/*"], "veragmil_suite": ["devices/web/**/*"]},
+    include_package_data=True,
+    install_requires=[
+        "robosuite==1.5.2",
+        f"mujoco=={MUJOCO_VERSION}",
+        "robomimic==0.3.0",
+        "torch>=2.0",
+        "h5py>=3.8",
+        "numpy>=1.24,<2",
+        "hidapi>=0.14",
+        "aiohttp>=3.9",
+        "tqdm>=4.60",
+        "imageio>=2.30",
+        "imageio-ffmpeg>=0.4.9",
+        "matplotlib>=3.7",
+    ],
+    extras_require={"test": ["pytest>=7", "ruff>=0.5"]},
+    entry_points={
+        "console_scripts": [
+            "veragmil-collect=veragmil_suite.scripts.collect_human_demonstrations:main",
+            "veragmil-dataset-info=veragmil_suite.scripts.dataset_tools:info_main",
+            "veragmil-merge=veragmil_suite.scripts.dataset_tools:merge_main",
+            "veragmil-split=veragmil_suite.scripts.dataset_tools:split_main",
+            "veragmil-replay=veragmil_suite.scripts.dataset_tools:replay_main",
+            "veragmil-render-obs=veragmil_suite.scripts.dataset_tools:render_obs_main",
+            "veragmil-train=veragmil_suite.scripts.robomimic_entry:train_main",
+            "veragmil-run-agent=veragmil_suite.scripts.robomimic_entry:run_agent_main",
+            "veragmil-robomimic-dataset-info=veragmil_suite.scripts.robomimic_entry:get_dataset_info_main",
+            "veragmil-robomimic-playback=veragmil_suite.scripts.robomimic_entry:playback_dataset_main",
+            "veragmil-robomimic-states-to-obs=veragmil_suite.scripts.robomimic_entry:dataset_states_to_obs_main",
+            "veragmil-evaluate=veragmil_suite.scripts.evaluate:main",
+            "veragmil-study=veragmil_suite.scripts.study:main",
+            "veragmil-quickstart=veragmil_suite.scripts.quickstart:main",
+            "veragmil-bench=veragmil_suite.bench:main",
+        ]
+    },
+)
