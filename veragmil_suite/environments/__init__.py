@@ -1,0 +1,3 @@
+from veragmil_suite.environments.scoop import ScoopGranular
+
+__all__ = ["ScoopGranular"]

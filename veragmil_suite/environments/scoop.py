@@ -1,0 +1,601 @@
+"""ScoopGranular: scoop granular food from a bowl with a spoon and carry it to a post-scoop pose without spilling."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+import robosuite.utils.transform_utils as T
+from robosuite.environments.manipulation.manipulation_env import ManipulationEnv
+from robosuite.utils.observables import Observable, sensor
+
+from veragmil_suite.controllers import load_scoop_controller_config
+from veragmil_suite.foods import FoodSpec, get_food
+from veragmil_suite.kinematics import solve_pose_ik
+from veragmil_suite.models.arena import ScoopArena
+from veragmil_suite.models.bowl import DEFAULT_BOWL_SHAPE, Bowl
+from veragmil_suite.models.dish import DishShape
+from veragmil_suite.models.grains import GrainPile
+from veragmil_suite.models.scoop_task import PHYSICS_TIMESTEP_S, PILE_SOLVER_OPTIONS, ScoopTask
+from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
+from veragmil_suite.settling import settle
+
+M3_PER_CM3 = 1e-6
+
+# Spoon orientations in the world, as rotation matrices of the flange (eef) frame. Pre-scoop: the tool points
+# straight down, so the bent spoon's tip points down at 45 degrees along +x (away from the robot), its bowl
+# facing up and forward. Post-scoop: the same turned 45 degrees about y, so the spoon's bowl is level.
+PRE_SCOOP_EEF_ROT = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
+_LEVEL_TURN = T.quat2mat(T.axisangle2quat(np.array([0.0, -np.pi / 4, 0.0])))
+POST_SCOOP_EEF_ROT = _LEVEL_TURN @ PRE_SCOOP_EEF_ROT
+
+
+class ScoopGranular(ManipulationEnv):
+    """
+    This class corresponds to scooping granular food (rice, buckwheat, barley, pasta, peas, beans, flakes) from a
+    bowl with a spoon, and carrying the spoonful to a post-scoop pose without spilling, for a single robot arm.
+
+    Args:
+        robots (str or list of str): Specification for specific robot arm to be instantiated within this env
+            (e.g: "XArm7"). Note: Must be a single single-arm robot!
+        env_configuration (str): Specifies how to position the robots within the environment (default is "default").
+        controller_configs (str or dict): composite controller config. None gives OSC_POSE (see
+            veragmil_suite.controllers.load_scoop_controller_config, which also offers robosuite's IK_POSE).
+        gripper_types (str): end-effector; default "SpoonGripper"
+        base_types (str): robot base type; "default" uses the robot's own
+        initialization_noise (dict or "default"): joint noise of the initial (pre-scoop) configuration
+        food (str or FoodSpec): a catalog food name (veragmil_suite.foods.FOODS) or a custom FoodSpec
+        n_grains (None or int): grains in the bowl; None uses the food's default (a scoopable real-time scene)
+        pile_variants (int): distinct piles (grain sizes and arrangement) drawn from per reset; each is settled
+            once per machine and cached (veragmil_suite.settling)
+        bowl_shape (DishShape): dimensions of the bowl
+        bowl_x_range (2-tuple): bowl position range along x (m, relative to its nominal place)
+        bowl_y_range (2-tuple): bowl position range along y (m, relative to its nominal place)
+        pre_scoop_offset (3-array): start position of the spoon relative to the bowl's rim centre (m)
+        post_scoop_offset (3-array): goal position of the spoon relative to the bowl's rim centre (m)
+        success_pos_tolerance (float): spoon within this distance of the post-scoop position (m)
+        success_tilt_tolerance_deg (float): spoon's bowl within this angle of level
+        success_max_speed (float): spoon slower than this (m/s), i.e. held at the pose
+        min_portion_cm3 (float): food volume the spoon must carry for success
+        max_spill_fraction (float): spilled volume must stay under this fraction of the volume scooped
+        table_full_size (3-tuple): x, y, and z dimensions of the table
+        use_camera_obs (bool): if True, every observation includes rendered image(s)
+        use_object_obs (bool): if True, include task information (desired pose, bowl, spoon load) in the
+            observation
+        use_food_params_obs (bool): if True, add the food's physical parameters to the object observations
+            (off by default so results on unseen foods stay honest)
+        reward_scale (None or float): Scales the normalized reward function by the amount specified
+        reward_shaping (bool): if True, use dense rewards
+        fast_rendering (bool): no anti-aliasing, shadows or fine tessellation (software rendering is 40x faster)
+        physics_solver_options (None or dict): MuJoCo <option> attributes for the pile (default: CG, elliptic)
+        (robosuite's usual arguments: has_renderer, has_offscreen_renderer, render_camera, render_collision_mesh,
+        render_visual_mesh, render_gpu_device_id, control_freq, lite_physics, horizon, ignore_done, hard_reset,
+        camera_names, camera_heights, camera_widths, camera_depths, camera_segmentations, renderer,
+        renderer_config, seed)
+
+    Raises:
+        ValueError: [Unknown food, invalid sizes or ranges]
+    """
+
+    def __init__(
+        self,
+        robots,
+        env_configuration="default",
+        controller_configs=None,
+        gripper_types="SpoonGripper",
+        base_types="default",
+        initialization_noise="default",
+        food="rice",
+        n_grains=None,
+        pile_variants=4,
+        bowl_shape: DishShape = DEFAULT_BOWL_SHAPE,
+        bowl_x_range=(-0.02, 0.02),
+        bowl_y_range=(-0.02, 0.02),
+        pre_scoop_offset=(-0.03, 0.0, 0.06),
+        post_scoop_offset=(-0.05, 0.12, 0.12),
+        success_pos_tolerance=0.03,
+        success_tilt_tolerance_deg=20.0,
+        success_max_speed=0.05,
+        min_portion_cm3=1.0,
+        max_spill_fraction=0.05,
+        table_full_size=(0.8, 0.8, 0.05),
+        use_camera_obs=True,
+        use_object_obs=True,
+        use_food_params_obs=False,
+        reward_scale=1.0,
+        reward_shaping=False,
+        fast_rendering=True,
+        physics_solver_options=None,
+        has_renderer=False,
+        has_offscreen_renderer=True,
+        render_camera="agentview",
+        render_collision_mesh=False,
+        render_visual_mesh=True,
+        render_gpu_device_id=-1,
+        control_freq=20,
+        lite_physics=True,
+        horizon=400,
+        ignore_done=False,
+        hard_reset=True,
+        camera_names="overhead",
+        camera_heights=84,
+        camera_widths=84,
+        camera_depths=False,
+        camera_segmentations=None,
+        renderer="mjviewer",
+        renderer_config=None,
+        seed=None,
+    ):
+        self.food: FoodSpec = get_food(food)
+        if n_grains is not None and (not isinstance(n_grains, (int, np.integer)) or n_grains <= 0):
+            raise ValueError(f"n_grains must be a positive integer or None (the food's default), got {n_grains!r}")
+        self.n_grains = int(n_grains) if n_grains is not None else self.food.default_grains
+        if int(pile_variants) < 1:
+            raise ValueError(f"pile_variants must be at least 1, got {pile_variants!r}")
+        self.pile_variants = int(pile_variants)
+        for label, rng_range in (("bowl_x_range", bowl_x_range), ("bowl_y_range", bowl_y_range)):
+            if len(rng_range) != 2 or rng_range[0] > rng_range[1]:
+                raise ValueError(f"{label} must be (low, high) with low <= high, got {rng_range!r}")
+        if control_freq <= 0:
+            raise ValueError(
+                f"control_freq must be positive (20 Hz default, 60 Hz as in the paper), got {control_freq}"
+            )
+        self.bowl_shape = bowl_shape
+        self.bowl_x_range = tuple(bowl_x_range)
+        self.bowl_y_range = tuple(bowl_y_range)
+        self.pre_scoop_offset = np.array(pre_scoop_offset, dtype=float)
+        self.post_scoop_offset = np.array(post_scoop_offset, dtype=float)
+        self.success_pos_tolerance = success_pos_tolerance
+        self.success_tilt_tolerance = np.deg2rad(success_tilt_tolerance_deg)
+        self.success_max_speed = success_max_speed
+        self.min_portion_m3 = min_portion_cm3 * M3_PER_CM3
+        self.max_spill_fraction = max_spill_fraction
+        self.fast_rendering = fast_rendering
+        self.physics_solver_options = physics_solver_options
+
+        # settings for table top: the bowl sits in the middle of the table
+        self.table_full_size = table_full_size
+        self.table_offset = np.array((0, 0, 0.8))
+        self.bowl_nominal_xy = np.zeros(2)
+
+        # reward configuration
+        self.reward_scale = reward_scale
+        self.reward_shaping = reward_shaping
+
+        # whether to use ground-truth object states
+        self.use_object_obs = use_object_obs
+        self.use_food_params_obs = use_food_params_obs
+
+        self._metrics_time = None
+        self._metrics = None
+        self._success_time = None
+        self._physics_error = ""
+
+        if controller_configs is None:
+            robot_name = robots if isinstance(robots, str) else robots[0]
+            controller_configs = load_scoop_controller_config("OSC_POSE", robot=robot_name)
+
+        super().__init__(
+            robots=robots,
+            env_configuration=env_configuration,
+            controller_configs=controller_configs,
+            base_types=base_types,
+            gripper_types=gripper_types,
+            initialization_noise=initialization_noise,
+            use_camera_obs=use_camera_obs,
+            has_renderer=has_renderer,
+            has_offscreen_renderer=has_offscreen_renderer,
+            render_camera=render_camera,
+            render_collision_mesh=render_collision_mesh,
+            render_visual_mesh=render_visual_mesh,
+            render_gpu_device_id=render_gpu_device_id,
+            control_freq=control_freq,
+            lite_physics=lite_physics,
+            horizon=horizon,
+            ignore_done=ignore_done,
+            hard_reset=hard_reset,
+            camera_names=camera_names,
+            camera_heights=camera_heights,
+            camera_widths=camera_widths,
+            camera_depths=camera_depths,
+            camera_segmentations=camera_segmentations,
+            renderer=renderer,
+            renderer_config=renderer_config,
+            seed=seed,
+        )
+
+    # ------------------------------------------------------------------------------------------------------------ #
+    # Reward and success                                                                                             #
+    # ------------------------------------------------------------------------------------------------------------ #
+
+    def reward(self, action=None):
+        """
+        Reward function for the task.
+
+        Sparse un-normalized reward:
+
+            - a discrete reward of 1.0 is provided on success
+
+        Un-normalized summed components if using reward shaping (each in [0, 1], weighted to sum to at most 1):
+
+            - Loading: 0.4 x the fraction of the minimum portion in the spoon
+            - Carrying: 0.4 x loading x closeness of the spoon to the post-scoop position
+            - Leveling: 0.1 x loading x how level the spoon is
+            - Clean: 0.1 x (1 - spilled fraction)
+
+        Note that the final reward is scaled by reward_scale.
+
+        Args:
+            action (np array): [NOT USED]
+
+        Returns:
+            float: reward value
+        """
+        if self._check_success():
+            reward = 1.0
+        elif self.reward_shaping:
+            m = self._scoop_metrics()
+            load = min(1.0, m["spoon_volume_m3"] / self.min_portion_m3)
+            dist = np.linalg.norm(m["spoon_pos"] - self._desired_pos())
+            reward = 0.4 * load + 0.4 * load * (1 - np.tanh(10.0 * dist))
+            reward += 0.1 * load * (1 - min(1.0, m["spoon_tilt"] / (np.pi / 2)))
+            reward += 0.1 * (1 - m["spill_fraction"])
+            reward = min(reward, 0.99)
+        else:
+            reward = 0.0
+        if self.reward_scale is not None:
+            reward *= self.reward_scale
+        return reward
+
+    def _check_success(self):
+        """
+        Success: the spoon is held at the post-scoop pose (within position and tilt tolerances, slower than
+        success_max_speed) carrying at least min_portion_cm3 of food, with spilled volume under
+        max_spill_fraction of the volume scooped.
+
+        Returns:
+            bool: True if the task succeeded
+        """
+        m = self._scoop_metrics()
+        return bool(
+            np.linalg.norm(m["spoon_pos"] - self._desired_pos()) <= self.success_pos_tolerance
+            and m["spoon_tilt"] <= self.success_tilt_tolerance
+            and m["spoon_speed"] <= self.success_max_speed
+            and m["spoon_volume_m3"] >= self.min_portion_m3
+            and m["spill_fraction"] < self.max_spill_fraction
+        )
+
+    # ------------------------------------------------------------------------------------------------------------ #
+    # Model                                                                                                          #
+    # ------------------------------------------------------------------------------------------------------------ #
+
+    def _load_model(self):
+        """
+        Loads an xml model, puts it in self.model
+        """
+        super()._load_model()
+
+        # Adjust base pose accordingly
+        xpos = self.robots[0].robot_model.base_xpos_offset["table"](self.table_full_size[0])
+        self.robots[0].robot_model.set_base_xpos(xpos)
+
+        mujoco_arena = ScoopArena(
+            table_full_size=self.table_full_size, table_offset=self.table_offset, bowl_xy=self.bowl_nominal_xy
+        )
+        # Arena always gets set to zero origin
+        mujoco_arena.set_origin([0, 0, 0])
+
+        self.bowl = Bowl(name="bowl", shape=self.bowl_shape)
+        # One of a few piles per food: each is settled once per machine (veragmil_suite.settling), and the same
+        # seed always draws the same one, so the same seed gives the same XML.
+        self.pile_variant = int(self.rng.integers(self.pile_variants))
+        pile_rng = np.random.default_rng([self.pile_variant, self.n_grains, *map(ord, self.food.name)])
+        self.grain_pile = GrainPile(self.food, self.n_grains, pile_rng)
+
+        self.model = ScoopTask(
+            mujoco_arena=mujoco_arena,
+            mujoco_robots=[robot.robot_model for robot in self.robots],
+            mujoco_objects=self.bowl,
+            grain_pile=self.grain_pile,
+            solver_options=self.physics_solver_options,
+            fast_rendering=self.fast_rendering,
+        )
+
+    def _setup_references(self):
+        """
+        Sets up references to important components. A reference is typically an
+        index or a list of indices that point to the corresponding elements
+        in a flatten array, which is how MuJoCo stores physical simulation data.
+        """
+        super()._setup_references()
+        model = self.sim.model
+        self.bowl_body_id = model.body_name2id(self.bowl.root_body)
+        self.bowl_qpos_adr = model.get_joint_qpos_addr(self.bowl.joints[0])[0]
+        self.bowl_qvel_adr = model.get_joint_qvel_addr(self.bowl.joints[0])[0]
+        self.grain_body_ids = np.array([model.body_name2id(n) for n in self.grain_pile.body_names])
+        self.grain_qpos_adr = np.array([model.get_joint_qpos_addr(n)[0] for n in self.grain_pile.joint_names])
+        self.grain_qvel_adr = np.array([model.get_joint_qvel_addr(n)[0] for n in self.grain_pile.joint_names])
+        gripper = self.robots[0].gripper["right"]
+        self.spoon_site_id = model.site_name2id(gripper.important_sites["spoon_frame"])
+        self.eef_site_id = self.robots[0].eef_site_id["right"]
+        self.grain_volumes_m3 = self.grain_pile.volumes_m3
+        self.grain_radius_max = float(self.grain_pile.radii.max())
+
+    def _reset_internal(self):
+        """
+        Resets simulation internal configurations: the robot at its pre-scoop pose, the bowl at a random place,
+        a settled pile in it.
+        """
+        self.robots[0].init_qpos = self._pre_scoop_qpos()
+        super()._reset_internal()
+        self._metrics_time = None
+        self._success_time = None
+        self._physics_error = ""
+
+        # Place the bowl and a settled pile (settled once, then moved rigidly: still settled)
+        option = {**PILE_SOLVER_OPTIONS, **(self.physics_solver_options or {})}
+        pile = settle(self.bowl, self.grain_pile, option, float(self.sim.model.opt.timestep))
+        offset = np.array(
+            [
+                self.bowl_nominal_xy[0] + self.rng.uniform(*self.bowl_x_range),
+                self.bowl_nominal_xy[1] + self.rng.uniform(*self.bowl_y_range),
+                self.table_offset[2],
+            ]
+        )
+        yaw = self.rng.uniform(-np.pi, np.pi)
+        turn = T.axisangle2quat(np.array([0.0, 0.0, yaw]))  # (x, y, z, w)
+        rot = T.quat2mat(turn)
+        qpos = self.sim.data.qpos
+        bowl_q = pile.bowl_qpos.copy()
+        bowl_q[:3] = rot @ bowl_q[:3] + offset
+        qpos[self.bowl_qpos_adr : self.bowl_qpos_adr + 7] = bowl_q
+        grains = pile.grain_qpos
+        idx = self.grain_qpos_adr[:, None] + np.arange(7)
+        new = np.empty_like(grains)
+        new[:, :3] = grains[:, :3] @ rot.T + offset
+        turn_wxyz = T.convert_quat(turn, to="wxyz")
+        new[:, 3:] = _quat_mul_wxyz(turn_wxyz, grains[:, 3:])
+        qpos[idx] = new
+        self.sim.data.qvel[self.grain_qvel_adr[:, None] + np.arange(6)] = 0.0
+        self.sim.data.qvel[self.bowl_qvel_adr : self.bowl_qvel_adr + 6] = 0.0
+        self.sim.forward()
+        self.settled_max_speed = pile.max_speed_m_s
+
+    def _pre_scoop_qpos(self) -> np.ndarray:
+        """Joint configuration that puts the spoon at its pre-scoop pose above the nominal bowl (cached)."""
+        robot = self.robots[0]
+        key = (type(robot.robot_model).__name__, tuple(self.pre_scoop_offset), tuple(self.table_full_size))
+        if key not in _PRE_SCOOP_CACHE:
+            target_pos = self._nominal_rim_center() + self.pre_scoop_offset
+            _PRE_SCOOP_CACHE[key] = solve_pose_ik(
+                self.sim.model._model,
+                joint_names=robot.robot_model.joints,
+                site_name=robot.gripper["right"].important_sites["grip_site"],
+                target_pos=target_pos,
+                target_rot=PRE_SCOOP_EEF_ROT,
+                q_init=np.array(robot.robot_model.init_qpos, dtype=float),
+            )
+        return _PRE_SCOOP_CACHE[key].copy()
+
+    def _nominal_rim_center(self) -> np.ndarray:
+        return np.array(
+            [self.bowl_nominal_xy[0], self.bowl_nominal_xy[1], self.table_offset[2] + self.bowl_shape.height]
+        )
+
+    # ------------------------------------------------------------------------------------------------------------ #
+    # Task state                                                                                                     #
+    # ------------------------------------------------------------------------------------------------------------ #
+
+    def _rim_center(self) -> np.ndarray:
+        """Centre of the bowl's rim in the world (the bowl may be nudged)."""
+        pos = self.sim.data.body_xpos[self.bowl_body_id]
+        mat = self.sim.data.body_xmat[self.bowl_body_id].reshape(3, 3)
+        return pos + mat @ self.bowl.rim_offset
+
+    def _desired_pos(self) -> np.ndarray:
+        """Post-scoop position of the spoon: a fixed offset from the bowl's rim (a function of the state alone)."""
+        return self._rim_center() + self.post_scoop_offset
+
+    def _scoop_metrics(self) -> dict:
+        """Where every grain is (bowl, spoon, spilled), computed once per simulation time."""
+        if self._metrics_time == self.sim.data.time and self._metrics is not None:
+            return self._metrics
+        data = self.sim.data
+        pos = data.body_xpos[self.grain_body_ids]
+        rim = self._rim_center()
+        bowl_axis = data.body_xmat[self.bowl_body_id].reshape(3, 3)[:, 2]
+        rel = pos - rim
+        radial = rel - np.outer(rel @ bowl_axis, bowl_axis)
+        in_bowl = np.linalg.norm(radial, axis=1) <= min(self.bowl_shape.rim_semi_axes)
+
+        spoon_pos = data.site_xpos[self.spoon_site_id]
+        spoon_rot = data.site_xmat[self.spoon_site_id].reshape(3, 3)
+        local = (pos - spoon_pos) @ spoon_rot
+        a, b = SPOON_SHAPE.rim_semi_axes
+        margin = self.grain_radius_max
+        in_spoon = (
+            ((local[:, 0] / (a + margin)) ** 2 + (local[:, 1] / (b + margin)) ** 2 <= 1.0)
+            & (local[:, 2] >= -SPOON_SHAPE.depth - margin)
+            & (local[:, 2] <= 3 * margin)
+        )
+        spilled = ~in_bowl & ~in_spoon
+        vol = self.grain_volumes_m3
+        spoon_volume = float(vol[in_spoon].sum())
+        spilled_volume = float(vol[spilled].sum())
+        lifted = float(vol[~in_bowl].sum()) + float(vol[in_spoon & in_bowl].sum())
+        spoon_vel = np.zeros(6)
+        mujoco.mj_objectVelocity(
+            self.sim.model._model, data._data, mujoco.mjtObj.mjOBJ_SITE, self.spoon_site_id, spoon_vel, 0
+        )
+        self._metrics = dict(
+            in_bowl=in_bowl,
+            in_spoon=in_spoon,
+            spilled=spilled,
+            grains_in_spoon=int(in_spoon.sum()),
+            grains_spilled=int(spilled.sum()),
+            spoon_volume_m3=spoon_volume,
+            spilled_volume_m3=spilled_volume,
+            lifted_volume_m3=lifted,
+            spill_fraction=spilled_volume / lifted if lifted > 0 else 0.0,
+            spoon_pos=spoon_pos.copy(),
+            spoon_tilt=float(np.arccos(np.clip(spoon_rot[2, 2], -1.0, 1.0))),
+            spoon_speed=float(np.linalg.norm(spoon_vel[3:])),
+        )
+        self._metrics_time = data.time
+        return self._metrics
+
+    def _physics_check(self) -> str:
+        """A description of a physics blow-up, or "" when the simulation is sound."""
+        data = self.sim.data
+        if data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > self._badqacc_seen:
+            return "MuJoCo reported unstable accelerations (mjWARN_BADQACC) and reset the simulation"
+        if not (np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()):
+            return "non-finite positions or velocities"
+        pos = data.body_xpos[self.grain_body_ids]
+        far = np.linalg.norm(pos[:, :2] - self.table_offset[:2], axis=1) > 2.0
+        if far.any() or (pos[:, 2] < -0.1).any():
+            return f"{int(far.sum() + (pos[:, 2] < -0.1).sum())} grains left the workspace"
+        return ""
+
+    def _post_action(self, action):
+        """
+        Adds the task's metrics to info, and ends the episode on a physics blow-up.
+
+        Returns:
+            3-tuple:
+                - (float) reward from the environment
+                - (bool) whether the current episode is completed or not
+                - (dict) info about the step
+        """
+        self._physics_error = self._physics_error or self._physics_check()
+        if self._physics_error:
+            reward, done, info = 0.0, True, {}
+        else:
+            reward, done, info = super()._post_action(action)
+        info.update(self.scoop_info())
+        return reward, done, info
+
+    def scoop_info(self) -> dict:
+        """The task's metrics now: grains in the spoon and spilled, spilled volume, completion time, success."""
+        elapsed = self.timestep * self.control_timestep
+        if self._physics_error:
+            return dict(
+                grains_in_spoon=0,
+                grains_spilled=0,
+                spilled_volume_cm3=0.0,
+                spill_fraction=0.0,
+                scooped_volume_cm3=0.0,
+                completion_time_s=elapsed,
+                success=False,
+                physics_error=self._physics_error,
+            )
+        m = self._scoop_metrics()
+        success = self._check_success()
+        if success and self._success_time is None:
+            self._success_time = elapsed
+        return dict(
+            grains_in_spoon=m["grains_in_spoon"],
+            grains_spilled=m["grains_spilled"],
+            spilled_volume_cm3=m["spilled_volume_m3"] / M3_PER_CM3,
+            spill_fraction=m["spill_fraction"],
+            scooped_volume_cm3=m["lifted_volume_m3"] / M3_PER_CM3,
+            spoon_volume_cm3=m["spoon_volume_m3"] / M3_PER_CM3,
+            completion_time_s=self._success_time if self._success_time is not None else elapsed,
+            success=success,
+            physics_error="",
+        )
+
+    # ------------------------------------------------------------------------------------------------------------ #
+    # Observations                                                                                                   #
+    # ------------------------------------------------------------------------------------------------------------ #
+
+    def _setup_observables(self):
+        """
+        Sets up observables to be used for this environment. Creates object-based observables if enabled
+
+        Returns:
+            OrderedDict: Dictionary mapping observable names to its corresponding Observable object
+        """
+        observables = super()._setup_observables()
+
+        if self.use_object_obs:
+            modality = "object"
+
+            @sensor(modality=modality)
+            def desired_pose(obs_cache):
+                pos = self._desired_pos()
+                return np.concatenate([pos, T.mat2quat(POST_SCOOP_EEF_ROT)])
+
+            @sensor(modality=modality)
+            def bowl_pos(obs_cache):
+                return self._rim_center()
+
+            @sensor(modality=modality)
+            def spoon_to_desired_pos(obs_cache):
+                return self._desired_pos() - self.sim.data.site_xpos[self.eef_site_id]
+
+            @sensor(modality=modality)
+            def grains_in_spoon(obs_cache):
+                return np.array([self._scoop_metrics()["grains_in_spoon"]], dtype=float)
+
+            @sensor(modality=modality)
+            def grains_spilled(obs_cache):
+                return np.array([self._scoop_metrics()["grains_spilled"]], dtype=float)
+
+            sensors = [desired_pose, bowl_pos, spoon_to_desired_pos, grains_in_spoon, grains_spilled]
+
+            if self.use_food_params_obs:
+
+                @sensor(modality=modality)
+                def food_params(obs_cache):
+                    f = self.food
+                    return np.array([f.mean_size_m, f.friction, f.restitution, f.density_kg_m3 / 1000.0])
+
+                sensors.append(food_params)
+
+            for s in sensors:
+                observables[s.__name__] = Observable(name=s.__name__, sensor=s, sampling_rate=self.control_freq)
+
+        return observables
+
+    def initialize_time(self, control_freq):
+        """
+        Initializes the time constants used for simulation: the task's own physics step (see ScoopTask), which
+        must divide the control period.
+        """
+        super().initialize_time(control_freq)
+        self.model_timestep = PHYSICS_TIMESTEP_S
+        substeps = self.control_timestep / self.model_timestep
+        if abs(substeps - round(substeps)) > 1e-6:
+            valid = ", ".join(str(int(1 / (PHYSICS_TIMESTEP_S * k))) for k in (24, 16, 12, 8, 6, 4, 3, 2, 1))
+            raise ValueError(
+                f"control_freq={control_freq} Hz does not divide the {PHYSICS_TIMESTEP_S * 1000:.3f} ms physics step; "
+                f"accepted control frequencies (Hz): {valid}"
+            )
+
+    def _initialize_sim(self, xml_string=None):
+        super()._initialize_sim(xml_string)
+        self._badqacc_seen = 0
+
+    def reset(self):
+        obs = super().reset()
+        self._badqacc_seen = self.sim.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number
+        return obs
+
+
+_PRE_SCOOP_CACHE: dict[tuple, np.ndarray] = {}
+
+
+def _quat_mul_wxyz(q: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """q * p for one (w, x, y, z) quaternion q and an (n, 4) array p."""
+    w0, x0, y0, z0 = q
+    w1, x1, y1, z1 = p.T
+    return np.stack(
+        [
+            w0 * w1 - x0 * x1 - y0 * y1 - z0 * z1,
+            w0 * x1 + x0 * w1 + y0 * z1 - z0 * y1,
+            w0 * y1 - x0 * z1 + y0 * w1 + z0 * x1,
+            w0 * z1 + x0 * y1 - y0 * x1 + z0 * w1,
+        ],
+        axis=1,
+    )

@@ -1,0 +1,80 @@
+"""The food bowl: a heavy dish on a high-friction foot, free to be nudged but not to slide."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from robosuite.models.objects import CompositeObject
+
+from veragmil_suite.foods import BOWL_FOOT_SURFACE, BOWL_SURFACE
+from veragmil_suite.models import contact_groups
+from veragmil_suite.models.dish import DishShape
+
+# Default bowl: 10 cm across at the rim, a 6 cm flat floor, 4.5 cm deep. Thick walls and floor: dropped grains
+# sink several millimetres into a contact and tunnel through thin ones (README, "Physics").
+DEFAULT_BOWL_SHAPE = DishShape(
+    rim_semi_axes=(0.05, 0.05),
+    floor_semi_axes=(0.03, 0.03),
+    depth=0.045,
+    wall_half_thickness=0.01,
+    floor_half_thickness=0.01,
+    n_walls=20,
+)
+FOOT_HALF_HEIGHT_M = 0.002  # the foot ring stands this far below the floor, so only the foot touches the table
+
+
+class Bowl(CompositeObject):
+    """
+    The food bowl as a free body. Its origin is the centre of its bounding box; ``rim_offset`` is the rim's
+    centre relative to it.
+
+    Args:
+        name (str): Name of this object
+        shape (DishShape): dimensions of the bowl
+        rgba (4-tuple): colour, chosen to contrast with pale grains in the overhead camera
+    """
+
+    def __init__(self, name: str, shape: DishShape = DEFAULT_BOWL_SHAPE, rgba=(0.25, 0.4, 0.65, 1.0)):
+        self.shape = shape
+        height = shape.height + 2 * FOOT_HALF_HEIGHT_M
+        self.rim_offset = np.array([0.0, 0.0, height / 2])
+        geoms = shape.geoms()
+        foot_radius = 0.7 * min(shape.floor_semi_axes)
+        geoms.append(
+            dict(
+                name="foot",
+                type="box",
+                pos=np.array([0.0, 0.0, -shape.height - FOOT_HALF_HEIGHT_M]),
+                quat=np.array([1.0, 0.0, 0.0, 0.0]),
+                size=np.array([foot_radius, foot_radius, FOOT_HALF_HEIGHT_M]),
+            )
+        )
+        r = shape.outer_radius
+        super().__init__(
+            name=name,
+            total_size=[r, r, height / 2],
+            geom_types=[g["type"] for g in geoms],
+            geom_sizes=[g["size"] for g in geoms],
+            geom_locations=[g["pos"] + self.rim_offset for g in geoms],
+            geom_quats=[g["quat"] for g in geoms],
+            geom_names=[g["name"] for g in geoms],
+            geom_frictions=[
+                (BOWL_FOOT_SURFACE.friction if g["name"] == "foot" else BOWL_SURFACE.friction, 0.005, 0.0001)
+                for g in geoms
+            ],
+            geom_condims=[3] * len(geoms),
+            rgba=rgba,
+            density=BOWL_SURFACE.density_kg_m3,
+            locations_relative_to_center=True,
+            joints="default",
+        )
+        for geom in self.get_obj().iter("geom"):
+            if geom.get("group") == "1":
+                continue
+            bits = contact_groups.BOWL_FOOT if geom.get("name").endswith("foot") else contact_groups.SHELL
+            for key, value in bits.items():
+                geom.set(key, str(value))
+
+    @property
+    def inner_radius_at_rim(self) -> float:
+        return float(min(self.shape.rim_semi_axes))

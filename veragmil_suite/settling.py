@@ -1,0 +1,128 @@
+"""Settled piles: grains dropped into the bowl and run until still, once per pile model, then reused.
+
+Settling takes 1.5-4 s of simulated time (seconds of wall time), far too long for every reset. A pile is settled
+in a small model of its own (table, bowl, grains: the robot does not take part) and the result, relative to the
+bowl, is kept in memory and on disk, keyed by that model's XML and the MuJoCo version. A settled pile moved or
+turned rigidly on the flat table is still settled, so one settled pile serves every bowl position.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from veragmil_suite.models import contact_groups
+from veragmil_suite.models.bowl import Bowl
+from veragmil_suite.models.grains import GrainPile
+
+SETTLE_SPEED_M_S = 0.005  # a pile whose fastest grain is slower than this is at rest
+SETTLE_MIN_S = 0.5  # simulated time always run (grains start in the air)
+SETTLE_MAX_S = 6.0  # give up waiting for rest after this much simulated time
+SETTLE_CHECK_EVERY_S = 0.1
+
+
+@dataclass
+class SettledPile:
+    """A pile at rest, in the bowl's frame at the origin of the table top.
+
+    Attributes:
+        bowl_qpos: (7,) the bowl's free-joint pose (pos, wxyz quat).
+        grain_qpos: (n, 7) every grain's free-joint pose.
+        max_speed_m_s: the fastest grain's speed when settling stopped.
+        settle_time_s: simulated time it took.
+    """
+
+    bowl_qpos: np.ndarray
+    grain_qpos: np.ndarray
+    max_speed_m_s: float
+    settle_time_s: float
+
+
+_MEMORY: dict[str, SettledPile] = {}
+
+
+def cache_dir() -> Path:
+    """Disk cache of settled piles: $VERAGMIL_CACHE_DIR, else $XDG_CACHE_HOME/veragmil_suite/piles."""
+    if os.environ.get("VERAGMIL_CACHE_DIR"):
+        return Path(os.environ["VERAGMIL_CACHE_DIR"])
+    base = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache"))
+    return base / "veragmil_suite" / "piles"
+
+
+def pile_model_xml(bowl: Bowl, pile: GrainPile, option: dict, timestep: float) -> str:
+    """The standalone settling model: a table top at z=0, the bowl resting on it, the grains on their lattice."""
+    root = ET.Element("mujoco", model="pile")
+    ET.SubElement(root, "option", timestep=repr(timestep), **{k: str(v) for k, v in option.items()})
+    world = ET.SubElement(root, "worldbody")
+    table = ET.SubElement(
+        world, "geom", name="table", type="box", pos="0 0 -0.025", size="0.5 0.5 0.025", friction="0.1 0.005 0.0001"
+    )
+    for key, value in contact_groups.SUPPORT.items():
+        table.set(key, str(value))
+    world.append(bowl.get_obj())
+    for body in pile.bodies():
+        world.append(body)
+    return ET.tostring(root, encoding="unicode")
+
+
+def settle(bowl: Bowl, pile: GrainPile, option: dict, timestep: float, use_disk: bool = True) -> SettledPile:
+    """The settled pile for this bowl and pile: from memory, from disk, or simulated now."""
+    xml = pile_model_xml(bowl, pile, option, timestep)
+    key = hashlib.sha256((xml + mujoco.__version__).encode()).hexdigest()[:24]
+    if key in _MEMORY:
+        return _MEMORY[key]
+    path = cache_dir() / f"{key}.npz"
+    if use_disk and path.exists():
+        try:
+            with np.load(path) as f:
+                result = SettledPile(f["bowl_qpos"], f["grain_qpos"], float(f["max_speed"]), float(f["settle_time"]))
+            if result.grain_qpos.shape == (pile.n_grains, 7):
+                _MEMORY[key] = result
+                return result
+        except (OSError, KeyError, ValueError):
+            pass  # a damaged cache file is simulated anew and overwritten
+    result = _simulate(xml, bowl, pile)
+    _MEMORY[key] = result
+    if use_disk:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
+        np.savez(
+            tmp,
+            bowl_qpos=result.bowl_qpos,
+            grain_qpos=result.grain_qpos,
+            max_speed=result.max_speed_m_s,
+            settle_time=result.settle_time_s,
+        )
+        os.replace(tmp, path)  # atomic: parallel workers never read half a file
+    return result
+
+
+def _simulate(xml: str, bowl: Bowl, pile: GrainPile) -> SettledPile:
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    bowl_joint = model.joint(bowl.joints[0]).qposadr[0]
+    grain_adr = np.array([model.joint(name).qposadr[0] for name in pile.joint_names])
+    bowl_pos = np.array([0.0, 0.0, -bowl.bottom_offset[2]])
+    data.qpos[bowl_joint : bowl_joint + 7] = np.concatenate([bowl_pos, [1.0, 0.0, 0.0, 0.0]])
+    lattice = pile.lattice_qpos(bowl.shape, rim_center=bowl_pos + bowl.rim_offset)
+    data.qpos[grain_adr[:, None] + np.arange(7)] = lattice
+    body_ids = np.array([model.body(name).id for name in pile.body_names])
+    steps_per_check = max(1, round(SETTLE_CHECK_EVERY_S / model.opt.timestep))
+    speed = np.inf
+    while data.time < SETTLE_MAX_S:
+        mujoco.mj_step(model, data, nstep=steps_per_check)
+        # cvel is (angular, linear) at the body's subtree centre of mass: the linear part is the grain's velocity
+        speed = float(np.linalg.norm(data.cvel[body_ids, 3:], axis=1).max())
+        if not np.isfinite(speed):
+            raise RuntimeError("the pile blew up while settling (non-finite velocities)")
+        if data.time >= SETTLE_MIN_S and speed < SETTLE_SPEED_M_S:
+            break
+    bowl_qpos = data.qpos[bowl_joint : bowl_joint + 7].copy()
+    grain_qpos = data.qpos[grain_adr[:, None] + np.arange(7)].copy()
+    return SettledPile(bowl_qpos, grain_qpos, speed, float(data.time))
