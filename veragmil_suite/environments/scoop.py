@@ -10,6 +10,7 @@ from robosuite.environments.manipulation.manipulation_env import ManipulationEnv
 from robosuite.utils.observables import Observable, sensor
 
 from veragmil_suite.controllers import load_scoop_controller_config
+from veragmil_suite.fast_control import use_block_mass_matrix
 from veragmil_suite.foods import FoodSpec, get_food
 from veragmil_suite.kinematics import solve_pose_ik
 from veragmil_suite.models.arena import ScoopArena
@@ -297,6 +298,7 @@ class ScoopGranular(ManipulationEnv):
             mujoco_robots=[robot.robot_model for robot in self.robots],
             mujoco_objects=self.bowl,
             grain_pile=self.grain_pile,
+            grain_home_qpos=self.grain_pile.lattice_qpos(self.bowl_shape, self._nominal_rim_center()),
             solver_options=self.physics_solver_options,
             fast_rendering=self.fast_rendering,
         )
@@ -328,6 +330,7 @@ class ScoopGranular(ManipulationEnv):
         """
         self.robots[0].init_qpos = self._pre_scoop_qpos()
         super()._reset_internal()
+        use_block_mass_matrix(self.robots[0])
         self._metrics_time = None
         self._success_time = None
         self._physics_error = ""

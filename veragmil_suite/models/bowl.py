@@ -10,12 +10,13 @@ from veragmil_suite.foods import BOWL_FOOT_SURFACE, BOWL_SURFACE
 from veragmil_suite.models import contact_groups
 from veragmil_suite.models.dish import DishShape
 
-# Default bowl: 10 cm across at the rim, a 6 cm flat floor, 4.5 cm deep. Thick walls and floor: dropped grains
-# sink several millimetres into a contact and tunnel through thin ones (README, "Physics").
+# Default bowl: 11 cm across at the rim, 4 cm deep, walls sloped at 45 degrees down to a 3 cm floor, so a few
+# hundred grains gather into a heap a spoon can dig into (a flat 6 cm floor spread 200 rice grains one layer
+# thin). Thick walls and floor: dropped grains sink millimetres into a contact and tunnel through thin ones.
 DEFAULT_BOWL_SHAPE = DishShape(
-    rim_semi_axes=(0.05, 0.05),
-    floor_semi_axes=(0.03, 0.03),
-    depth=0.045,
+    rim_semi_axes=(0.055, 0.055),
+    floor_semi_axes=(0.015, 0.015),
+    depth=0.04,
     wall_half_thickness=0.01,
     floor_half_thickness=0.01,
     n_walls=20,

@@ -15,6 +15,9 @@ from veragmil_suite.models.dish import DishShape
 
 # Lower bound of a grain's principal inertia, as a fraction of mass * (size/2)^2 (a solid sphere is 0.4).
 GRAIN_MIN_INERTIA_FACTOR = 0.4
+# Free-joint damping per grain, as a spin decay rate (1/s) times its smallest principal inertia. It stops grains
+# rolling within ~1/rate seconds; on translation the same damping decays speed at 1e-4/s (negligible).
+GRAIN_SPIN_DECAY_PER_S = 20.0
 
 
 class GrainPile:
@@ -77,9 +80,20 @@ class GrainPile:
             )
         return self._mass_properties
 
-    def bodies(self) -> list[ET.Element]:
-        """The grains' bodies (at the origin: their poses live in qpos), ready to append to a worldbody."""
-        return self._bodies(inertials=self.mass_properties())
+    def bodies(self, home_qpos: np.ndarray | None = None) -> list[ET.Element]:
+        """The grains' bodies, ready to append to a worldbody.
+
+        Args:
+            home_qpos: (n, 7) poses written into the XML (MuJoCo's qpos0). robosuite runs the physics forward
+                several times before a task places its objects; grains all at the origin would overlap in one
+                point and cost 1.5 s per forward, so the task passes a spread-out arrangement.
+        """
+        out = self._bodies(inertials=self.mass_properties())
+        if home_qpos is not None:
+            for body, q in zip(out, home_qpos):
+                body.set("pos", array_to_string(q[:3]))
+                body.set("quat", array_to_string(q[3:]))
+        return out
 
     def _bodies(self, inertials: dict | None) -> list[ET.Element]:
         solref = array_to_string(self.food.solref)
@@ -88,8 +102,12 @@ class GrainPile:
         out = []
         for i, geoms in enumerate(self.geoms):
             body = new_body(name=f"{self.name}{i}", pos=(0, 0, 0))
-            body.append(ET.Element("freejoint", name=f"{self.name}{i}_joint"))
+            joint = ET.SubElement(body, "joint", name=f"{self.name}{i}_joint", type="free")
             if inertials is not None:
+                # Rolling resistance: real grains are not perfect capsules and stop rolling; an ideal one on a
+                # flat floor rolls forever (condim 3 has no rolling friction), so the pile never comes to rest.
+                damping = GRAIN_SPIN_DECAY_PER_S * float(inertials["inertia"][i].min())
+                joint.set("damping", repr(damping))
                 body.append(
                     ET.Element(
                         "inertial",
@@ -120,35 +138,70 @@ class GrainPile:
         return out
 
     def lattice_qpos(self, bowl: DishShape, rim_center: np.ndarray) -> np.ndarray:
-        """Starting poses (n, 7: pos, wxyz quat) on a jittered lattice inside the bowl, free of overlaps.
+        """Starting poses (n, 7: pos, wxyz quat) on a jittered lattice in and above the bowl, free of overlaps.
 
-        Layers stack upward from the floor; each layer fills the bowl's cross-section at its height (narrower
-        than the rim, so every grain falls inside the bowl).
+        Grains lie with their long axis horizontal and a random heading, so a layer is as thick as a grain
+        (not as long): long pasta would otherwise start a metre up and hit the pile hard enough to tunnel. Layers
+        span the bowl's cross-section at their height, at most the rim (the sloped walls funnel grains inward).
         """
         rng = np.random.default_rng(self._orientation_seed)
         spacing = 2 * self.radii.max() * 1.05
+        layer_height = 2 * self.thickness_radii.max() * 1.1
         floor_z = rim_center[2] - bowl.depth
         r_floor, r_rim = min(bowl.floor_semi_axes), min(bowl.rim_semi_axes)
         positions = []
-        z = floor_z + spacing / 2
+        z = floor_z + layer_height / 2
         layer = 0
         while len(positions) < self.n_grains:
             height = min(z - floor_z, bowl.depth)
-            radius = r_floor + (r_rim - r_floor) * height / bowl.depth - spacing / 2 - bowl.wall_half_thickness
+            radius = r_floor + (r_rim - r_floor) * height / bowl.depth - spacing / 2
             offset = 0.5 * spacing * (layer % 2)
-            ticks = np.arange(-radius, radius + 1e-9, spacing)
+            ticks = np.arange(-radius - offset, radius + spacing, spacing)
             for x in ticks:
                 for y in ticks:
-                    if np.hypot(x + offset, y + offset) <= radius:
-                        positions.append((rim_center[0] + x + offset, rim_center[1] + y + offset, z))
-            z += spacing
+                    if np.hypot(x, y) <= radius:
+                        positions.append((rim_center[0] + x, rim_center[1] + y, z))
+            z += layer_height
             layer += 1
         order = rng.permutation(len(positions))[: self.n_grains]
         pos = np.array(positions)[order]
-        pos[:, :2] += rng.uniform(-0.02, 0.02, size=(self.n_grains, 2)) * spacing
-        quat = rng.normal(size=(self.n_grains, 4))
-        quat /= np.linalg.norm(quat, axis=1, keepdims=True)
+        yaw = rng.uniform(-np.pi, np.pi, self.n_grains)
+        # each grain's long axis: capsules are long along z, the other shapes along x
+        lay_down = np.array([np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0])  # 90 degrees about x
+        quat = np.stack([np.cos(yaw / 2), np.zeros_like(yaw), np.zeros_like(yaw), np.sin(yaw / 2)], axis=1)
+        if self.geoms[0][0]["type"] == "capsule":
+            quat = np.array([_quat_mul(q, lay_down) for q in quat])
         return np.hstack([pos, quat])
+
+    @property
+    def thickness_radii(self) -> np.ndarray:
+        """Half of each grain's vertical extent when it lies on its long side (for layer spacing)."""
+        out = []
+        for geoms in self.geoms:
+            g = geoms[0]
+            size = np.asarray(g["size"], dtype=float)
+            if g["type"] in ("capsule", "sphere"):
+                out.append(size[0])
+            elif g["type"] == "spheres_triangle":
+                out.append(size[0])
+            else:
+                extent = max(float(size[1:].max()), float(np.abs(np.asarray(g["pos"])[2:]).max(initial=0.0)))
+                out.append(extent if len(geoms) == 1 else float(size.max()))
+        return np.array(out)
+
+
+def _quat_mul(q: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Hamilton product of two (w, x, y, z) quaternions."""
+    w0, x0, y0, z0 = q
+    w1, x1, y1, z1 = p
+    return np.array(
+        [
+            w0 * w1 - x0 * x1 - y0 * y1 - z0 * z1,
+            w0 * x1 + x0 * w1 + y0 * z1 - z0 * y1,
+            w0 * y1 - x0 * z1 + y0 * w1 + z0 * x1,
+            w0 * z1 + x0 * y1 - y0 * x1 + z0 * w1,
+        ]
+    )
 
 
 def _bounding_radius(geoms: list[dict]) -> float:
