@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 
 from robosuite.controllers import load_composite_controller_config, load_part_controller_config
+from robosuite.controllers.parts.arm.ik import SUPPORTED_IK_ROBOTS
 
 ARM_CONTROLLERS = ("OSC_POSE", "IK_POSE")
 
@@ -17,10 +18,15 @@ def load_scoop_controller_config(controller: str = "OSC_POSE", robot: str = "XAr
     """
     if controller not in ARM_CONTROLLERS:
         raise ValueError(f"Unknown arm controller {controller!r}; accepted: {', '.join(ARM_CONTROLLERS)}")
+    if controller == "IK_POSE" and robot not in SUPPORTED_IK_ROBOTS:
+        raise ValueError(
+            f"robosuite's IK_POSE controller supports only {', '.join(sorted(SUPPORTED_IK_ROBOTS))}, not {robot!r}; "
+            "use OSC_POSE for it"
+        )
     config = copy.deepcopy(load_composite_controller_config(controller="BASIC", robot=robot))
     part = load_part_controller_config(default_controller=controller)
-    for arm, arm_config in config["body_parts"].items():
-        if arm in ("right", "left"):
-            gripper = arm_config.get("gripper")
-            config["body_parts"][arm] = dict(part, **({"gripper": gripper} if gripper else {}))
+    # single-arm robots: robosuite's arm is "right"; the other parts of BASIC (left, torso, head, base, legs)
+    # would only be dropped again with a warning each
+    gripper = config["body_parts"]["right"].get("gripper")
+    config["body_parts"] = {"right": dict(part, **({"gripper": gripper} if gripper else {}))}
     return config

@@ -9,7 +9,7 @@ food        Table I shape MuJoCo geometry (per grain)
 rice        elongated     two overlapping spheres (radius ``aspect[0]`` * size / 2) spanning ``size``: sphere
                           contacts are analytic, 10x cheaper than ellipsoids; capsules never came to rest
 buckwheat   triangular    compound of three spheres in a triangle (a rounded triangular seed)
-barley      oval          ellipsoid with semi-axes size/2 * (1, aspect)
+barley      oval          two overlapping spheres, like rice but plumper
 pasta       cylindrical   capsule (a short tube seen from the outside)
 peas        spherical     sphere of diameter = size
 beans       oval          ellipsoid
@@ -191,7 +191,7 @@ for _food in (
     FoodSpec("beans", "ellipsoid", (0.010, 0.018), 0.25, 0.20, 1000.0, (0.65, 0.5), 60, (0.55, 0.2, 0.15, 1), "Oval"),
     FoodSpec("buckwheat", "spheres_triangle", (0.004, 0.006), 0.30, 0.10, 780.0, (), 200, (0.6, 0.42, 0.25, 1), "Triangular"),
     FoodSpec("peas", "sphere", (0.006, 0.008), 0.22, 0.20, 720.0, (), 150, (0.45, 0.75, 0.25, 1), "Spherical"),
-    FoodSpec("barley", "ellipsoid", (0.008, 0.012), 0.18, 0.15, 1250.0, (0.55, 0.5), 120, (0.85, 0.78, 0.6, 1), "Oval"),
+    FoodSpec("barley", "sphere_pair", (0.008, 0.012), 0.18, 0.15, 1250.0, (0.55,), 120, (0.85, 0.78, 0.6, 1), "Oval"),
     FoodSpec("flakes", "flake_pair", (0.012, 0.020), 0.15, 0.05, 400.0, (0.8, 0.12, 20.0), 80, (0.9, 0.7, 0.3, 1), "Irregular"),
     FoodSpec("pasta", "capsule", (0.020, 0.035), 0.25, 0.10, 1200.0, (0.28,), 40, (0.98, 0.85, 0.45, 1), "Cylindrical"),
 ):  # fmt: skip

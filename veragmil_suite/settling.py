@@ -25,6 +25,8 @@ SETTLE_SPEED_M_S = 0.005  # a pile whose fastest grain is slower than this is at
 SETTLE_MIN_S = 0.5  # simulated time always run (grains start in the air)
 SETTLE_MAX_S = 6.0  # give up waiting for rest after this much simulated time
 SETTLE_CHECK_EVERY_S = 0.1
+SETTLE_RETRIES = 3  # times a grain that bounced out of the bowl is dropped back in
+SETTLE_VERSION = "2"  # part of the cache key: bump when settling itself changes
 
 
 @dataclass
@@ -74,7 +76,7 @@ def pile_model_xml(bowl: Bowl, pile: GrainPile, option: dict, timestep: float) -
 def settle(bowl: Bowl, pile: GrainPile, option: dict, timestep: float, use_disk: bool = True) -> SettledPile:
     """The settled pile for this bowl and pile: from memory, from disk, or simulated now."""
     xml = pile_model_xml(bowl, pile, option, timestep)
-    key = hashlib.sha256((xml + mujoco.__version__).encode()).hexdigest()[:24]
+    key = hashlib.sha256((xml + mujoco.__version__ + SETTLE_VERSION).encode()).hexdigest()[:24]
     if key in _MEMORY:
         return _MEMORY[key]
     path = cache_dir() / f"{key}.npz"
@@ -114,6 +116,28 @@ def _simulate(xml: str, bowl: Bowl, pile: GrainPile) -> SettledPile:
     data.qpos[grain_adr[:, None] + np.arange(7)] = lattice
     body_ids = np.array([model.body(name).id for name in pile.body_names])
     steps_per_check = max(1, round(SETTLE_CHECK_EVERY_S / model.opt.timestep))
+    rim_radius = min(bowl.shape.rim_semi_axes)
+    speed = np.inf
+    for _ in range(SETTLE_RETRIES + 1):
+        speed = _run_until_still(model, data, body_ids, steps_per_check)
+        # a grain that bounced over the rim is dropped again onto the middle of the pile
+        rel = data.xpos[body_ids] - data.qpos[bowl_joint : bowl_joint + 3]
+        escaped = np.flatnonzero(np.hypot(rel[:, 0], rel[:, 1]) > rim_radius - 0.5 * pile.radii)
+        if escaped.size == 0:
+            break
+        top = data.xpos[body_ids, 2].max()
+        for k, i in enumerate(escaped):
+            adr = grain_adr[i]
+            data.qpos[adr : adr + 3] = [bowl_pos[0], bowl_pos[1], top + (k + 1) * 2.2 * pile.radii.max()]
+            data.qvel[model.jnt_dofadr[model.joint(pile.joint_names[i]).id] :][:6] = 0.0
+        data.time = 0.0
+    bowl_qpos = data.qpos[bowl_joint : bowl_joint + 7].copy()
+    grain_qpos = data.qpos[grain_adr[:, None] + np.arange(7)].copy()
+    return SettledPile(bowl_qpos, grain_qpos, speed, float(data.time))
+
+
+def _run_until_still(model: mujoco.MjModel, data: mujoco.MjData, body_ids: np.ndarray, steps_per_check: int) -> float:
+    """Steps until the fastest grain is slower than SETTLE_SPEED_M_S (or SETTLE_MAX_S); returns that speed."""
     speed = np.inf
     while data.time < SETTLE_MAX_S:
         mujoco.mj_step(model, data, nstep=steps_per_check)
@@ -123,6 +147,4 @@ def _simulate(xml: str, bowl: Bowl, pile: GrainPile) -> SettledPile:
             raise RuntimeError("the pile blew up while settling (non-finite velocities)")
         if data.time >= SETTLE_MIN_S and speed < SETTLE_SPEED_M_S:
             break
-    bowl_qpos = data.qpos[bowl_joint : bowl_joint + 7].copy()
-    grain_qpos = data.qpos[grain_adr[:, None] + np.arange(7)].copy()
-    return SettledPile(bowl_qpos, grain_qpos, speed, float(data.time))
+    return speed

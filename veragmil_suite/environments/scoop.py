@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import mujoco
 import numpy as np
-
 import robosuite.utils.transform_utils as T
 from robosuite.environments.manipulation.manipulation_env import ManipulationEnv
 from robosuite.utils.observables import Observable, sensor
@@ -401,9 +400,10 @@ class ScoopGranular(ManipulationEnv):
 
     def _scoop_metrics(self) -> dict:
         """Where every grain is (bowl, spoon, spilled), computed once per simulation time."""
-        if self._metrics_time == self.sim.data.time and self._metrics is not None:
-            return self._metrics
         data = self.sim.data
+        stamp = (data.time, hash(data.qpos.tobytes()))  # hand-set states (tests, reset_to) change qpos, not time
+        if self._metrics_time == stamp and self._metrics is not None:
+            return self._metrics
         pos = data.body_xpos[self.grain_body_ids]
         rim = self._rim_center()
         bowl_axis = data.body_xmat[self.bowl_body_id].reshape(3, 3)[:, 2]
@@ -444,14 +444,14 @@ class ScoopGranular(ManipulationEnv):
             spoon_tilt=float(np.arccos(np.clip(spoon_rot[2, 2], -1.0, 1.0))),
             spoon_speed=float(np.linalg.norm(spoon_vel[3:])),
         )
-        self._metrics_time = data.time
+        self._metrics_time = stamp
         return self._metrics
 
     def _physics_check(self) -> str:
         """A description of a physics blow-up, or "" when the simulation is sound."""
         data = self.sim.data
-        if data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > self._badqacc_seen:
-            return "MuJoCo reported unstable accelerations (mjWARN_BADQACC) and reset the simulation"
+        if _instability_warnings(data) > self._badqacc_seen:
+            return "MuJoCo reported unstable positions, velocities or accelerations and reset the simulation"
         if not (np.isfinite(data.qpos).all() and np.isfinite(data.qvel).all()):
             return "non-finite positions or velocities"
         pos = data.body_xpos[self.grain_body_ids]
@@ -538,14 +538,12 @@ class ScoopGranular(ManipulationEnv):
                 return self._desired_pos() - self.sim.data.site_xpos[self.eef_site_id]
 
             @sensor(modality=modality)
-            def grains_in_spoon(obs_cache):
-                return np.array([self._scoop_metrics()["grains_in_spoon"]], dtype=float)
+            def spoon_load(obs_cache):
+                # grains in the spoon, grains spilled (a vector: robosuite squeezes one-element observations)
+                m = self._scoop_metrics()
+                return np.array([m["grains_in_spoon"], m["grains_spilled"]], dtype=float)
 
-            @sensor(modality=modality)
-            def grains_spilled(obs_cache):
-                return np.array([self._scoop_metrics()["grains_spilled"]], dtype=float)
-
-            sensors = [desired_pose, bowl_pos, spoon_to_desired_pos, grains_in_spoon, grains_spilled]
+            sensors = [desired_pose, bowl_pos, spoon_to_desired_pos, spoon_load]
 
             if self.use_food_params_obs:
 
@@ -582,11 +580,21 @@ class ScoopGranular(ManipulationEnv):
 
     def reset(self):
         obs = super().reset()
-        self._badqacc_seen = self.sim.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number
+        self._badqacc_seen = _instability_warnings(self.sim.data)
         return obs
 
 
 _PRE_SCOOP_CACHE: dict[tuple, np.ndarray] = {}
+_INSTABILITY_WARNINGS = (
+    mujoco.mjtWarning.mjWARN_BADQPOS,
+    mujoco.mjtWarning.mjWARN_BADQVEL,
+    mujoco.mjtWarning.mjWARN_BADQACC,
+)
+
+
+def _instability_warnings(data) -> int:
+    """How many times MuJoCo found non-finite or huge state and reset itself (it does so silently)."""
+    return sum(data.warning[w].number for w in _INSTABILITY_WARNINGS)
 
 
 def _quat_mul_wxyz(q: np.ndarray, p: np.ndarray) -> np.ndarray:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-
 from robosuite.models.arenas import TableArena
 from robosuite.utils.mjcf_utils import array_to_string, new_element
 

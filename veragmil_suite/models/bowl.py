@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-
 from robosuite.models.objects import CompositeObject
 
 from veragmil_suite.foods import BOWL_FOOT_SURFACE, BOWL_SURFACE

@@ -9,7 +9,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
 from robosuite.utils.transform_utils import convert_quat, mat2quat
 
 

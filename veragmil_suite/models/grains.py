@@ -6,7 +6,6 @@ import xml.etree.ElementTree as ET
 
 import mujoco
 import numpy as np
-
 from robosuite.utils.mjcf_utils import array_to_string, new_body, new_geom
 
 from veragmil_suite.foods import GRAIN_SOLIMP, FoodSpec

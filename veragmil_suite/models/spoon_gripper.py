@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-
 from robosuite.models.grippers import register_gripper
 from robosuite.models.grippers.gripper_model import GripperModel
 from robosuite.utils.mjcf_utils import array_to_string, find_elements, new_geom

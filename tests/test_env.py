@@ -1,0 +1,268 @@
+"""ScoopGranular: builds for every food and robot, settles, scoops, counts spillage, checks success, replays."""
+
+import mujoco
+import numpy as np
+import pytest
+import robosuite
+import robosuite.utils.transform_utils as T
+from helpers_env import grain_positions, make_env
+
+from veragmil_suite.controllers import load_scoop_controller_config
+from veragmil_suite.environments.scoop import POST_SCOOP_EEF_ROT, PRE_SCOOP_EEF_ROT
+from veragmil_suite.foods import FOODS
+from veragmil_suite.kinematics import solve_pose_ik
+from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
+
+ROBOTS = ["XArm7", "Panda", "Sawyer", "UR5e", "IIWA", "Kinova3", "Jaco"]
+OBJECT_KEYS = {"desired_pose": 7, "bowl_pos": 3, "spoon_to_desired_pos": 3, "spoon_load": 2}
+INFO_KEYS = {
+    "grains_in_spoon",
+    "grains_spilled",
+    "spilled_volume_cm3",
+    "spill_fraction",
+    "scooped_volume_cm3",
+    "completion_time_s",
+    "success",
+    "physics_error",
+}
+
+
+@pytest.mark.parametrize("food", sorted(FOODS))
+def test_every_food_builds_settles_and_steps(food):
+    env = make_env(food)
+    obs = env.reset()
+    for key, dim in OBJECT_KEYS.items():
+        assert obs[key].shape == (dim,), key
+    assert obs["object-state"].shape == (sum(OBJECT_KEYS.values()),)
+    # settled inside the bowl, still
+    assert env.settled_max_speed < 0.01
+    np.testing.assert_array_equal(obs["spoon_load"], [0, 0])
+    start = grain_positions(env)
+    for _ in range(5):
+        obs, reward, done, info = env.step(np.zeros(env.action_dim))
+    assert INFO_KEYS <= set(info)
+    assert info["physics_error"] == "" and not done
+    assert info["grains_spilled"] == 0
+    # a pile at rest stays put: no grain drifts more than 2 mm in a quarter second
+    assert np.linalg.norm(grain_positions(env) - start, axis=1).max() < 0.002
+    env.close()
+
+
+@pytest.mark.parametrize("robot", ROBOTS)
+def test_every_robot_starts_at_pre_scoop_pose_with_the_spoon(robot):
+    env = make_env("pasta", robot=robot, initialization_noise=None)
+    env.reset()
+    assert env.action_dim == 6  # OSC_POSE; the spoon has no gripper DoF
+    eef = env.sim.data.site_xpos[env.eef_site_id]
+    target = env._nominal_rim_center() + env.pre_scoop_offset
+    assert np.linalg.norm(eef - target) < 0.002
+    rot = env.sim.data.site_xmat[env.eef_site_id].reshape(3, 3)
+    assert np.degrees(np.linalg.norm(T.quat2axisangle(T.mat2quat(PRE_SCOOP_EEF_ROT @ rot.T)))) < 10
+    before = eef.copy()
+    for _ in range(10):
+        env.step(np.array([0.0, 0.0, 0.5, 0.0, 0.0, 0.0]))
+    assert env.sim.data.site_xpos[env.eef_site_id][2] - before[2] > 0.02  # the spoon follows an upward command
+    env.close()
+
+
+def test_ik_controller_and_60hz_control():
+    config = load_scoop_controller_config("IK_POSE", robot="Panda")
+    env = make_env("pasta", robot="Panda", controller_configs=config, control_freq=60)
+    env.reset()
+    assert round(env.control_timestep / env.model_timestep) == 4
+    before = env.sim.data.site_xpos[env.eef_site_id].copy()
+    for _ in range(30):
+        env.step(np.array([0.0, 0.0, 0.5, 0.0, 0.0, 0.0]))
+    assert env.sim.data.site_xpos[env.eef_site_id][2] - before[2] > 0.01
+    env.close()
+
+
+def _drive(env, pos, rot, steps, max_pos=0.2, max_rot=0.08):
+    """Closed-loop OSC deltas toward a spoon pose, slowly turning (fast turns fling grains)."""
+    info = {}
+    for _ in range(steps):
+        eef = env.sim.data.site_xpos[env.eef_site_id]
+        cur = env.sim.data.site_xmat[env.eef_site_id].reshape(3, 3)
+        rot_err = T.quat2axisangle(T.mat2quat(rot @ cur.T))
+        action = np.concatenate(
+            [np.clip((pos - eef) / 0.05, -max_pos, max_pos), np.clip(rot_err / 0.5, -max_rot, max_rot)]
+        )
+        _, _, _, info = env.step(action)
+    return info
+
+
+def test_scripted_scoop_moves_grains_and_loads_the_spoon():
+    env = make_env("rice")
+    env.reset()
+    rim = env._rim_center()
+    floor = rim[2] - env.bowl_shape.depth
+    start = grain_positions(env)
+    _drive(env, np.array([rim[0] - 0.035, rim[1], floor + 0.03]), PRE_SCOOP_EEF_ROT, 25)
+    _drive(env, np.array([rim[0] - 0.02, rim[1], floor + 0.02]), PRE_SCOOP_EEF_ROT, 20, max_pos=0.1)
+    _drive(env, np.array([rim[0] + 0.005, rim[1], floor + 0.017]), PRE_SCOOP_EEF_ROT, 20, max_pos=0.1)
+    info = _drive(env, np.array([rim[0] + 0.005, rim[1], floor + 0.018]), POST_SCOOP_EEF_ROT, 50)
+    moved = np.linalg.norm(grain_positions(env) - start, axis=1) > 0.005
+    assert moved.sum() >= 20
+    assert info["grains_in_spoon"] >= 5
+    assert info["physics_error"] == ""
+    env.close()
+
+
+def test_grains_on_the_table_count_as_spilled():
+    env = make_env("peas")
+    env.reset()
+    rim = env._rim_center()
+    picked = np.arange(5)
+    qpos = env.sim.data.qpos
+    for k, i in enumerate(picked):
+        adr = env.grain_qpos_adr[i]
+        qpos[adr : adr + 3] = [rim[0] + 0.15, rim[1] + 0.02 * k, env.table_offset[2] + 0.005]
+    env.sim.forward()
+    info = env.scoop_info()
+    assert info["grains_spilled"] == 5
+    assert info["spilled_volume_cm3"] == pytest.approx(env.grain_volumes_m3[picked].sum() * 1e6)
+    assert info["spill_fraction"] == pytest.approx(1.0)
+    assert info["success"] is False
+    env.close()
+
+
+def _hold_spoon_at_goal(env, tilt_deg=0.0, n_in_spoon=40):
+    """A hand-made state: the robot holding the spoon at the post-scoop pose with grains resting in it."""
+    robot = env.robots[0]
+    rot = T.quat2mat(T.axisangle2quat(np.array([np.deg2rad(tilt_deg), 0.0, 0.0]))) @ POST_SCOOP_EEF_ROT
+    q = solve_pose_ik(
+        env.sim.model._model,
+        robot.robot_model.joints,
+        robot.gripper["right"].important_sites["grip_site"],
+        env._desired_pos(),
+        rot,
+        np.array(robot.init_qpos),
+    )
+    qpos = env.sim.data.qpos
+    qpos[robot._ref_joint_pos_indexes] = q
+    env.sim.data.qvel[:] = 0.0
+    env.sim.forward()
+    spoon_pos = env.sim.data.site_xpos[env.spoon_site_id]
+    spoon_rot = env.sim.data.site_xmat[env.spoon_site_id].reshape(3, 3)
+    floor_x, floor_y = SPOON_SHAPE.floor_semi_axes
+    grid = [(x, y) for x in np.linspace(-0.8, 0.8, 8) for y in np.linspace(-0.8, 0.8, 5)]
+    for i, (gx, gy) in enumerate(grid[:n_in_spoon]):
+        local = np.array([gx * floor_x, gy * floor_y, -SPOON_SHAPE.depth + 0.004])
+        adr = env.grain_qpos_adr[i]
+        qpos[adr : adr + 3] = spoon_pos + spoon_rot @ local
+    env.sim.forward()
+
+
+def test_success_on_hand_made_states():
+    env = make_env("rice", min_portion_cm3=0.3)
+    env.reset()
+    _hold_spoon_at_goal(env)
+    info = env.scoop_info()
+    assert info["grains_in_spoon"] == 40
+    assert info["spoon_volume_cm3"] >= 0.3
+    assert env._check_success() and info["success"]
+
+    # too small a portion
+    env.reset()
+    _hold_spoon_at_goal(env, n_in_spoon=5)
+    assert not env._check_success()
+
+    # tilted past the tolerance
+    env.reset()
+    _hold_spoon_at_goal(env, tilt_deg=35.0)
+    assert not env._check_success()
+
+    # more than 5% of the scooped volume on the table
+    env.reset()
+    _hold_spoon_at_goal(env)
+    rim = env._rim_center()
+    for k, i in enumerate(range(40, 46)):
+        adr = env.grain_qpos_adr[i]
+        env.sim.data.qpos[adr : adr + 3] = [rim[0] + 0.15, rim[1] + 0.02 * k, env.table_offset[2] + 0.005]
+    env.sim.forward()
+    info = env.scoop_info()
+    assert info["spill_fraction"] > 0.05
+    assert not info["success"]
+    env.close()
+
+
+def test_same_seed_same_xml_and_state_and_exact_replay():
+    a, b = make_env("barley", seed=7, pile_variants=3), make_env("barley", seed=7, pile_variants=3)
+    a.reset(), b.reset()
+    assert a.sim.model.get_xml() == b.sim.model.get_xml()
+    np.testing.assert_array_equal(a.sim.get_state().flatten(), b.sim.get_state().flatten())
+
+    # robosuite's playback recipe: XML + flattened state, then the actions open loop
+    xml = a.sim.model.get_xml()
+    a.reset_from_xml_string(xml)
+    a.sim.reset()
+    a.sim.set_state_from_flattened(b.sim.get_state().flatten())
+    a.sim.forward()
+    start = a.sim.get_state().flatten()
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-0.3, 0.3, size=(8, 6))
+    states = []
+    for act in actions:
+        a.step(act)
+        states.append(a.sim.get_state().flatten())
+    b.reset_from_xml_string(xml)
+    b.sim.reset()
+    b.sim.set_state_from_flattened(start)
+    b.sim.forward()
+    for act, expected in zip(actions, states):
+        b.step(act)
+        np.testing.assert_array_equal(b.sim.get_state().flatten(), expected)
+    a.close(), b.close()
+
+
+def test_bad_input_names_the_problem_and_accepted_values():
+    with pytest.raises(ValueError, match="accepted foods: .*rice"):
+        make_env("quinoa")
+    with pytest.raises(ValueError, match="n_grains"):
+        make_env("rice", n_grains=0)
+    with pytest.raises(ValueError, match="accepted control frequencies"):
+        make_env("rice", control_freq=7)
+    with pytest.raises(ValueError, match="accepted: OSC_POSE, IK_POSE"):
+        load_scoop_controller_config("JOINT_TORQUE")
+    with pytest.raises(ValueError, match="IK_POSE controller supports only .*Panda"):
+        load_scoop_controller_config("IK_POSE", robot="XArm7")
+    with pytest.raises(ValueError, match="bowl_x_range"):
+        make_env("rice", bowl_x_range=(0.02, -0.02))
+
+
+def test_physics_blow_up_ends_the_episode_without_crashing():
+    env = make_env("pasta")
+    env.reset()
+    env.sim.data.qvel[env.grain_qvel_adr[0]] = np.nan
+    obs, reward, done, info = env.step(np.zeros(6))
+    assert done
+    assert info["physics_error"]
+    assert reward == 0.0
+    env.close()
+
+
+def test_overhead_camera_renders_rgb_and_depth():
+    env = make_env(
+        "peas",
+        has_offscreen_renderer=True,
+        use_camera_obs=True,
+        camera_names=["overhead", "agentview"],
+        camera_heights=64,
+        camera_widths=64,
+        camera_depths=True,
+    )
+    obs = env.reset()
+    assert obs["overhead_image"].shape == (64, 64, 3)
+    assert obs["overhead_depth"].shape == (64, 64, 1)
+    assert obs["agentview_image"].shape == (64, 64, 3)
+    # the bowl and food fill the middle of the overhead view: it is not a blank frame
+    assert obs["overhead_image"].std() > 10
+    env.close()
+
+
+def test_robosuite_make_registered_names():
+    assert "ScoopGranular" in robosuite.ALL_ENVIRONMENTS
+    from robosuite.models.grippers import GRIPPER_MAPPING
+
+    assert "SpoonGripper" in GRIPPER_MAPPING
+    assert mujoco.__version__ == "3.3.7"

@@ -1,0 +1,112 @@
+"""Speed of ScoopGranular: env steps/s and real-time factor per food, against robosuite's Lift and bare MuJoCo.
+
+    python -m veragmil_suite.bench                    # every food, 1x/2x/4x its default grain count
+    python -m veragmil_suite.bench --foods rice --scales 1 --steps 40
+
+Real time at 20 Hz control is 20 env steps/s (RTF 1.0). "bare mj_step" steps the same compiled scene with no
+controller and no robosuite, so env/bare shows what robosuite's Python costs; "vs Lift" compares with robosuite's
+Lift task on the same robot. The robot holds still (zero delta actions), the pile at rest: the steady state of
+most of an episode. Run on an otherwise idle machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import mujoco
+import numpy as np
+import robosuite
+
+import veragmil_suite  # noqa: F401  (registers ScoopGranular)
+from veragmil_suite.foods import FOODS, TRAINING_FOODS
+
+REAL_TIME_STEPS_PER_S = 20.0  # the default 20 Hz control rate
+
+
+def _env_rate(env, steps: int) -> float:
+    env.reset()
+    action = np.zeros(env.action_dim)
+    env.step(action)  # first step pays one-off costs
+    start = time.perf_counter()
+    for _ in range(steps):
+        env.step(action)
+    return steps / (time.perf_counter() - start)
+
+
+def _bare_rate(env, steps: int) -> float:
+    """Env steps/s if each env step were only its physics substeps: MuJoCo alone on the same compiled scene.
+
+    The arm is held up by applying its gravity and Coriolis forces once per env step, in place of a controller.
+    """
+    env.reset()
+    model, data = env.sim.model._model, env.sim.data._data
+    arm_dofs = np.asarray(env.robots[0]._ref_joint_vel_indexes)
+    substeps = int(round(env.control_timestep / env.model_timestep))
+    start = time.perf_counter()
+    for _ in range(steps):
+        data.qfrc_applied[arm_dofs] = data.qfrc_bias[arm_dofs]
+        mujoco.mj_step(model, data, nstep=substeps)
+    return steps / (time.perf_counter() - start)
+
+
+def make_env(food: str, n_grains: int | None = None, robot: str = "XArm7"):
+    return robosuite.make(
+        "ScoopGranular",
+        robots=robot,
+        food=food,
+        n_grains=n_grains,
+        has_renderer=False,
+        has_offscreen_renderer=False,
+        use_camera_obs=False,
+        pile_variants=1,
+        seed=0,
+    )
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--foods", default=",".join(FOODS), help="comma-separated foods (default: all)")
+    parser.add_argument("--scales", default="1,2,4", help="grain counts as multiples of each food's default")
+    parser.add_argument("--steps", type=int, default=60, help="env steps timed per configuration")
+    parser.add_argument("--robot", default="XArm7")
+    args = parser.parse_args(argv)
+    foods = [f.strip() for f in args.foods.split(",") if f.strip()]
+    unknown = [f for f in foods if f not in FOODS]
+    if unknown:
+        parser.error(f"unknown food(s) {', '.join(unknown)}; accepted foods: {', '.join(FOODS)}")
+    try:
+        scales = [float(s) for s in args.scales.split(",")]
+    except ValueError:
+        parser.error(f"--scales takes comma-separated numbers, got {args.scales!r}")
+
+    lift = robosuite.make(
+        "Lift", robots=args.robot, has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False
+    )
+    lift_rate = _env_rate(lift, args.steps)
+    lift.close()
+    print(f"robosuite Lift ({args.robot}): {lift_rate:7.1f} steps/s  RTF {lift_rate / REAL_TIME_STEPS_PER_S:5.2f}")
+    print()
+    columns = ("grains", "steps/s", "RTF", "vs Lift", "bare mj", "env/bare", "contacts")
+    header = f"{'food':<10}" + "".join(f" {c:>8}" for c in columns)
+    print(header)
+    print("-" * len(header))
+    for food in foods:
+        for scale in scales:
+            n = max(1, int(round(FOODS[food].default_grains * scale)))
+            env = make_env(food, n, args.robot)
+            rate = _env_rate(env, args.steps)
+            contacts = env.sim.data.ncon
+            bare = _bare_rate(env, args.steps)
+            env.close()
+            flag = " *" if food in TRAINING_FOODS and scale == 1 and rate < REAL_TIME_STEPS_PER_S else ""
+            print(
+                f"{food:<10} {n:>8} {rate:>8.1f} {rate / REAL_TIME_STEPS_PER_S:>6.2f} {rate / lift_rate:>8.2f} "
+                f"{bare:>8.1f} {rate / bare:>8.2f} {contacts:>8}{flag}",
+                flush=True,
+            )
+    print("\n* a training food's default scene below real time")
+
+
+if __name__ == "__main__":
+    main()
