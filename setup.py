@@ -1,10 +1,17 @@
 """veragmil_suite: scooping granular food with a spoon, as a robosuite task plugin."""
 
+import os
+
 from setuptools import find_packages, setup
 
 # Recorded demonstrations replay bit-exactly only on the MuJoCo that recorded them, and robosuite 1.5.2
 # breaks with mujoco >= 3.12: one exact version is pinned.
 MUJOCO_VERSION = "3.3.7"
+
+# models/assets stays at the repository's top level and is installed as the package data of
+# veragmil_suite.assets (one package per folder), so a non-editable install finds it from any directory.
+ASSET_DIRS = sorted(d for d, _, _ in os.walk(os.path.join("models", "assets")))
+ASSET_PACKAGES = {"veragmil_suite.assets" + d[len("models/assets") :].replace(os.sep, "."): d for d in ASSET_DIRS}
 
 setup(
     name="veragmil_suite",

@@ -6,13 +6,10 @@ from pathlib import Path
 
 
 def assets_root() -> Path:
-    """The ``models/assets`` folder: package data of ``veragmil_suite.assets`` once installed."""
-    try:
-        import veragmil_suite.assets as installed
-
-        return Path(next(iter(installed.__path__)))
-    except (ImportError, StopIteration):
-        return Path(__file__).resolve().parent.parent / "models" / "assets"
+    """``veragmil_suite/assets`` when installed from a wheel, else the checkout's top-level ``models/assets``."""
+    package = Path(__file__).resolve().parent
+    installed = package / "assets"
+    return installed if installed.is_dir() else package.parent / "models" / "assets"
 
 
 def asset_path(relative: str) -> str:

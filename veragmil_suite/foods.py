@@ -189,7 +189,7 @@ for _food in (
     # name, shape, size range (m), friction, restitution, density (kg/m^3), aspect, default grains, rgba, Table I shape
     FoodSpec("rice", "sphere_pair", (0.005, 0.007), 0.20, 0.10, 1450.0, (0.4,), 200, (0.96, 0.95, 0.9, 1), "Elongated"),
     FoodSpec("beans", "ellipsoid", (0.010, 0.018), 0.25, 0.20, 1000.0, (0.65, 0.5), 60, (0.55, 0.2, 0.15, 1), "Oval"),
-    FoodSpec("buckwheat", "spheres_triangle", (0.004, 0.006), 0.30, 0.10, 780.0, (), 200, (0.6, 0.42, 0.25, 1), "Triangular"),
+    FoodSpec("buckwheat", "spheres_triangle", (0.004, 0.006), 0.30, 0.10, 780.0, (), 150, (0.6, 0.42, 0.25, 1), "Triangular"),
     FoodSpec("peas", "sphere", (0.006, 0.008), 0.22, 0.20, 720.0, (), 150, (0.45, 0.75, 0.25, 1), "Spherical"),
     FoodSpec("barley", "sphere_pair", (0.008, 0.012), 0.18, 0.15, 1250.0, (0.55,), 120, (0.85, 0.78, 0.6, 1), "Oval"),
     FoodSpec("flakes", "flake_pair", (0.012, 0.020), 0.15, 0.05, 400.0, (0.8, 0.12, 20.0), 80, (0.9, 0.7, 0.3, 1), "Irregular"),

@@ -60,7 +60,8 @@ def cache_dir() -> Path:
 def pile_model_xml(bowl: Bowl, pile: GrainPile, option: dict, timestep: float) -> str:
     """The standalone settling model: a table top at z=0, the bowl resting on it, the grains on their lattice."""
     root = ET.Element("mujoco", model="pile")
-    ET.SubElement(root, "option", timestep=repr(timestep), **{k: str(v) for k, v in option.items()})
+    opt = ET.SubElement(root, "option", timestep=repr(timestep), **{k: str(v) for k, v in option.items()})
+    ET.SubElement(opt, "flag", eulerdamp="disable")  # as in ScoopTask
     world = ET.SubElement(root, "worldbody")
     table = ET.SubElement(
         world, "geom", name="table", type="box", pos="0 0 -0.025", size="0.5 0.5 0.025", friction="0.1 0.005 0.0001"
