@@ -172,8 +172,9 @@ def _triangle_sphere_radius(size_m: float) -> float:
 
 
 # Table I of the paper. Sizes are metres (Table I: cm), densities kg/m^3 (Table I: g/cm^3).
-# ``aspect`` and ``default_grains`` are our choices: aspect from typical grain proportions, grain counts from the
-# default-scene study (README, "A scene that is both scoopable and fast").
+# ``aspect`` and ``default_grains`` are our choices: aspect from typical grain proportions (rice is short-grain,
+# width 0.55 of length: a heap twice the volume of long-grain for the same contacts), grain counts from the
+# default-scene study (README, "Physics").
 FOODS: dict[str, FoodSpec] = {}
 
 
@@ -187,7 +188,7 @@ def register_food(food: FoodSpec, overwrite: bool = False) -> FoodSpec:
 
 for _food in (
     # name, shape, size range (m), friction, restitution, density (kg/m^3), aspect, default grains, rgba, Table I shape
-    FoodSpec("rice", "sphere_pair", (0.005, 0.007), 0.20, 0.10, 1450.0, (0.4,), 200, (0.96, 0.95, 0.9, 1), "Elongated"),
+    FoodSpec("rice", "sphere_pair", (0.005, 0.007), 0.20, 0.10, 1450.0, (0.55,), 200, (0.96, 0.95, 0.9, 1), "Elongated"),
     FoodSpec("beans", "ellipsoid", (0.010, 0.018), 0.25, 0.20, 1000.0, (0.65, 0.5), 60, (0.55, 0.2, 0.15, 1), "Oval"),
     FoodSpec("buckwheat", "spheres_triangle", (0.004, 0.006), 0.30, 0.10, 780.0, (), 150, (0.6, 0.42, 0.25, 1), "Triangular"),
     FoodSpec("peas", "sphere", (0.006, 0.008), 0.22, 0.20, 720.0, (), 150, (0.45, 0.75, 0.25, 1), "Spherical"),

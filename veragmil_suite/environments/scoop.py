@@ -56,7 +56,9 @@ class ScoopGranular(ManipulationEnv):
         success_pos_tolerance (float): spoon within this distance of the post-scoop position (m)
         success_tilt_tolerance_deg (float): spoon's bowl within this angle of level
         success_max_speed (float): spoon slower than this (m/s), i.e. held at the pose
-        min_portion_cm3 (float): food volume the spoon must carry for success
+        min_portion_fraction (float): food the spoon must carry for success, as a fraction of the food in the bowl
+            (by volume: 5% is ~10 grains of rice, 2 pieces of pasta)
+        min_portion_cm3 (None or float): an absolute portion (cm^3) instead of min_portion_fraction
         max_spill_fraction (float): spilled volume must stay under this fraction of the volume scooped
         table_full_size (3-tuple): x, y, and z dimensions of the table
         use_camera_obs (bool): if True, every observation includes rendered image(s)
@@ -96,7 +98,8 @@ class ScoopGranular(ManipulationEnv):
         success_pos_tolerance=0.03,
         success_tilt_tolerance_deg=20.0,
         success_max_speed=0.05,
-        min_portion_cm3=1.0,
+        min_portion_fraction=0.05,
+        min_portion_cm3=None,
         max_spill_fraction=0.05,
         table_full_size=(0.8, 0.8, 0.05),
         use_camera_obs=True,
@@ -148,7 +151,10 @@ class ScoopGranular(ManipulationEnv):
         self.success_pos_tolerance = success_pos_tolerance
         self.success_tilt_tolerance = np.deg2rad(success_tilt_tolerance_deg)
         self.success_max_speed = success_max_speed
-        self.min_portion_m3 = min_portion_cm3 * M3_PER_CM3
+        if not 0 < min_portion_fraction <= 1:
+            raise ValueError(f"min_portion_fraction must lie in (0, 1], got {min_portion_fraction!r}")
+        self.min_portion_fraction = min_portion_fraction
+        self.min_portion_cm3 = min_portion_cm3
         self.max_spill_fraction = max_spill_fraction
         self.fast_rendering = fast_rendering
         self.physics_solver_options = physics_solver_options
@@ -320,6 +326,10 @@ class ScoopGranular(ManipulationEnv):
         self.spoon_site_id = model.site_name2id(gripper.important_sites["spoon_frame"])
         self.eef_site_id = self.robots[0].eef_site_id["right"]
         self.grain_volumes_m3 = self.grain_pile.volumes_m3
+        if self.min_portion_cm3 is not None:
+            self.min_portion_m3 = self.min_portion_cm3 * M3_PER_CM3
+        else:
+            self.min_portion_m3 = self.min_portion_fraction * float(self.grain_volumes_m3.sum())
         self.grain_radius_max = float(self.grain_pile.radii.max())
 
     def _reset_internal(self):
