@@ -21,12 +21,12 @@ from veragmil_suite.models import contact_groups
 from veragmil_suite.models.bowl import Bowl
 from veragmil_suite.models.grains import GrainPile
 
-SETTLE_SPEED_M_S = 0.005  # a pile whose fastest grain is slower than this is at rest
+SETTLE_SPEED_M_S = 0.002  # a pile whose fastest grain is slower than this is at rest
 SETTLE_MIN_S = 0.5  # simulated time always run (grains start in the air)
 SETTLE_MAX_S = 6.0  # give up waiting for rest after this much simulated time
 SETTLE_CHECK_EVERY_S = 0.1
 SETTLE_RETRIES = 3  # times a grain that bounced out of the bowl is dropped back in
-SETTLE_VERSION = "2"  # part of the cache key: bump when settling itself changes
+SETTLE_VERSION = "3"  # part of the cache key: bump when settling itself changes
 
 
 @dataclass

@@ -21,6 +21,7 @@ DEFAULT_BOWL_SHAPE = DishShape(
     n_walls=20,
 )
 FOOT_HALF_HEIGHT_M = 0.002  # the foot ring stands this far below the floor, so only the foot touches the table
+SKIRT_HALF_THICKNESS_M = 0.003
 
 
 class Bowl(CompositeObject):
@@ -49,7 +50,8 @@ class Bowl(CompositeObject):
                 size=np.array([foot_radius, foot_radius, FOOT_HALF_HEIGHT_M]),
             )
         )
-        r = shape.outer_radius
+        geoms += _skirt(shape, bottom_z=-shape.height - 2 * FOOT_HALF_HEIGHT_M)
+        r = shape.outer_radius + 2 * SKIRT_HALF_THICKNESS_M
         super().__init__(
             name=name,
             total_size=[r, r, height / 2],
@@ -78,3 +80,26 @@ class Bowl(CompositeObject):
     @property
     def inner_radius_at_rim(self) -> float:
         return float(min(self.shape.rim_semi_axes))
+
+
+def _skirt(shape: DishShape, bottom_z: float) -> list[dict]:
+    """Vertical outer walls from the table to the rim, closing the overhang under the sloped walls.
+
+    A grain that rolled under the overhang was pressed into the table by the bowl's whole weight (MuJoCo's soft
+    contacts scale with the grain's tiny mass) and sank a centimetre into it.
+    """
+    radius = shape.outer_radius + SKIRT_HALF_THICKNESS_M
+    half_height = -bottom_z / 2
+    chord = 2 * radius * np.sin(np.pi / shape.n_walls)
+    out = []
+    for k, theta in enumerate(np.linspace(0.0, 2 * np.pi, shape.n_walls, endpoint=False)):
+        out.append(
+            dict(
+                name=f"skirt{k}",
+                type="box",
+                pos=np.array([radius * np.cos(theta), radius * np.sin(theta), bottom_z / 2]),
+                quat=np.array([np.cos(theta / 2), 0.0, 0.0, np.sin(theta / 2)]),
+                size=np.array([SKIRT_HALF_THICKNESS_M, chord / 2 * shape.wall_overlap, half_height]),
+            )
+        )
+    return out
