@@ -65,15 +65,41 @@ def test_every_robot_starts_at_pre_scoop_pose_with_the_spoon(robot):
     env.close()
 
 
-def test_ik_controller_and_60hz_control():
-    config = load_scoop_controller_config("IK_POSE", robot="Panda")
-    env = make_env("pasta", robot="Panda", controller_configs=config, control_freq=60)
+@pytest.mark.parametrize("robot, control_freq", [("XArm7", 60), ("Panda", 20)])
+def test_ik_controller_and_60hz_control(robot, control_freq):
+    """robosuite's IK_POSE holds the spoon at zero action and moves it along each commanded axis."""
+    env = make_env(
+        "pasta",
+        robot=robot,
+        controller_configs=load_scoop_controller_config("IK_POSE", robot=robot),
+        control_freq=control_freq,
+    )
     env.reset()
-    assert round(env.control_timestep / env.model_timestep) == 4
-    before = env.sim.data.site_xpos[env.eef_site_id].copy()
-    for _ in range(30):
-        env.step(np.array([0.0, 0.0, 0.5, 0.0, 0.0, 0.0]))
-    assert env.sim.data.site_xpos[env.eef_site_id][2] - before[2] > 0.01
+    assert env.action_dim == 6
+    assert round(env.control_timestep / env.model_timestep) == 240 // control_freq
+
+    def spoon():
+        sid = env.eef_site_id
+        return env.sim.data.site_xpos[sid].copy(), env.sim.data.site_xmat[sid].reshape(3, 3).copy()
+
+    start, _ = spoon()
+    for _ in range(control_freq):  # 1 s of zero actions
+        env.step(np.zeros(6))
+    assert np.linalg.norm(spoon()[0] - start) < 0.005
+    # 0.01 m and 0.03 rad per step for 0.5 s: measured 50-65 mm and 8-11 deg along the axis, under 5% across it
+    for axis, sign in [(2, 1), (0, -1), (1, 1), (5, 1)]:
+        action = np.zeros(6)
+        action[axis] = sign * (0.01 if axis < 3 else 0.03)
+        pos, rot = spoon()
+        for _ in range(control_freq // 2):
+            env.step(action)
+        new_pos, new_rot = spoon()
+        moved = new_pos - pos if axis < 3 else T.quat2axisangle(T.mat2quat(new_rot @ rot.T))
+        along = sign * moved[axis % 3]
+        assert along > (0.03 if axis < 3 else np.radians(5)), (axis, moved)
+        assert np.linalg.norm(np.delete(moved, axis % 3)) < 0.15 * along, (axis, moved)
+        for _ in range(control_freq // 4):
+            env.step(np.zeros(6))
     env.close()
 
 
@@ -224,8 +250,8 @@ def test_bad_input_names_the_problem_and_accepted_values():
         make_env("rice", control_freq=7)
     with pytest.raises(ValueError, match="accepted: OSC_POSE, IK_POSE"):
         load_scoop_controller_config("JOINT_TORQUE")
-    with pytest.raises(ValueError, match="IK_POSE controller supports only .*Panda"):
-        load_scoop_controller_config("IK_POSE", robot="XArm7")
+    with pytest.raises(ValueError, match="IK_POSE controller needs a 7-DoF arm .*XArm7.*UR5e"):
+        load_scoop_controller_config("IK_POSE", robot="UR5e")
     with pytest.raises(ValueError, match="bowl_x_range"):
         make_env("rice", bowl_x_range=(0.02, -0.02))
 

@@ -9,22 +9,37 @@ from robosuite.controllers.parts.arm.ik import SUPPORTED_IK_ROBOTS
 
 ARM_CONTROLLERS = ("OSC_POSE", "IK_POSE")
 
+# robosuite 1.5's IK_POSE is differential IK on MuJoCo's site Jacobian: nothing in it is robot-specific but its
+# 7-entry null-space gains, so it drives every 7-DoF arm; robosuite's list of IK robots predates that (pybullet URDFs)
+IK_ROBOTS = ("XArm7", "Panda", "Sawyer", "IIWA", "Kinova3", "Jaco")
+
 
 def load_scoop_controller_config(controller: str = "OSC_POSE", robot: str = "XArm7") -> dict:
     """robosuite's BASIC composite controller for ``robot`` with ``controller`` driving the arm.
 
     OSC_POSE (default) takes delta end-effector poses; IK_POSE is robosuite's inverse-kinematics controller, as
-    the paper used. Either gives 6-D actions: the spoon has no gripper DoF.
+    the paper used, for 7-DoF arms: its actions are the spoon's target displacement in metres and rotation in
+    radians, about world axes, clipped to 0.02 m and 0.05 rad (env.action_spec). Either gives 6-D actions: the
+    spoon has no gripper DoF.
     """
     if controller not in ARM_CONTROLLERS:
         raise ValueError(f"Unknown arm controller {controller!r}; accepted: {', '.join(ARM_CONTROLLERS)}")
-    if controller == "IK_POSE" and robot not in SUPPORTED_IK_ROBOTS:
+    if controller == "IK_POSE" and robot not in IK_ROBOTS:
         raise ValueError(
-            f"robosuite's IK_POSE controller supports only {', '.join(sorted(SUPPORTED_IK_ROBOTS))}, not {robot!r}; "
+            f"robosuite's IK_POSE controller needs a 7-DoF arm ({', '.join(IK_ROBOTS)}), not {robot!r}; "
             "use OSC_POSE for it"
         )
     config = copy.deepcopy(load_composite_controller_config(controller="BASIC", robot=robot))
     part = load_part_controller_config(default_controller=controller)
+    if controller == "IK_POSE":
+        SUPPORTED_IK_ROBOTS.add(robot)  # robosuite asserts membership when it builds the controller
+        # IK_POSE hands absolute joint targets to its JointPositionController base, whose input_type defaults to
+        # "delta": the targets were added to the current joint angles and the arm ran away (robosuite issue #640)
+        part["input_type"] = "absolute"
+        # its default kp=100 reaches a tenth of each step's joint target, and the small corrections stick in XArm7's
+        # joint friction (frictionloss 1 N m), bending +z commands 37% sideways; robosuite's own WHOLE_BODY_IK joint
+        # gain keeps every axis within 5% on XArm7 and Panda
+        part["kp"] = 1000
     # single-arm robots: robosuite's arm is "right"; the other parts of BASIC (left, torso, head, base, legs)
     # would only be dropped again with a warning each
     gripper = config["body_parts"]["right"].get("gripper")
