@@ -1,0 +1,399 @@
+"""
+Compatibility layer that lets robomimic 0.3.0 (the PyPI release) train, roll out and process datasets against
+robosuite 1.5 and the CPU torch wheels, without editing site-packages.
+
+robomimic 0.3.0 was written for robosuite 1.2-1.4 on mujoco-py. Each gap below was measured here; ``install()``
+bridges all of them and is idempotent. Call it before importing robomimic's training or model modules (it imports
+torchvision itself); the console entry points (veragmil_suite.scripts.robomimic_entry) do.
+
+Imports:
+    - ``envs/env_robosuite.py`` imports ``mujoco_py``: a stand-in module is installed when no mujoco_py exists;
+      its ``builder.MujocoException`` (robomimic's rollout exception) is ``mujoco.FatalError``.
+    - torchvision from PyPI fails to import beside the CPU torch wheel ("operator torchvision::nms does not
+      exist": its compiled ops do not load, yet it registers fake kernels for them). The missing op schemas are
+      defined only when that import fails, then the import is retried; otherwise nothing is defined.
+
+robosuite 1.5 environments (EnvRobosuite's methods are replaced, so every robomimic path uses them):
+    - ``env_name`` stored inside env_kwargs (robosuite 1.5's own collection scripts do) made robosuite.make fail
+      with a duplicate argument: it is dropped.
+    - controller configs of robosuite <= 1.4 (one arm part, e.g. {"type": "OSC_POSE"}) are converted to 1.5's
+      composite form with robosuite's own converter.
+    - ``camera_depths`` was forced off, and cameras render only for rgb policies: depth observations are rendered
+      when the policy uses a depth key or the dataset recorded depth.
+    - observations kept only robot-prefixed keys and rgb images: task observables such as ``desired_pose`` were
+      dropped (KeyError in rollouts). Every enabled observable is kept; ``object-state`` becomes ``object``.
+    - empty observables (a gripper with no joints, like the spoon: robot0_gripper_qpos has shape (0,)) broke the
+      recurrent and BCQ policies in rollouts (a reshape of 0 elements): they are left out.
+    - images were flipped whatever robosuite's IMAGE_CONVENTION: they are flipped only for "opengl", so
+      observations are upright under either convention.
+    - ``get_state`` saved ``sim.model.get_xml()``, which in robosuite 1.5 returns the XML of the model compiled
+      last in the process (mj_saveLastXML), not this simulation's: each sim now remembers its source XML.
+    - ``step`` always reported done=False: an environment's own termination (a physics blow-up in ScoopGranular)
+      now ends the rollout instead of stepping a broken simulation to the horizon.
+    - every offscreen renderer probed for EGL GPUs (egl_probe), even with MUJOCO_GL=osmesa: only EGL probes.
+
+robomimic's train.py:
+    - a relative ``train.output_dir`` resolved against robomimic's package folder (site-packages): it resolves
+      against the working directory.
+    - an existing experiment folder made it wait on ``input()``: runs never prompt, never delete, and two runs
+      started in the same second no longer collide.
+    - the validation loader dropped its last batch, so a validation split smaller than a batch gave no batch at
+      all and the run failed: validation keeps every sample. A training split smaller than one batch fails with
+      a clear message instead of a bare StopIteration.
+    - every training error was caught and the process still exited 0: ``prepare_train_script`` records it so the
+      entry point exits non-zero.
+    - robomimic's scripts cannot see a plugin environment (no import hook): importing this module imports the
+      veragmil_suite package first, which registers ScoopGranular, and the entry points run the scripts here.
+"""
+
+from __future__ import annotations
+
+import builtins
+import contextlib
+import copy
+import functools
+import importlib.util
+import os
+import re
+import sys
+import time
+import types
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+# Schemas of the torchvision ops whose fake kernels torchvision registers even when its compiled library did not
+# load (the same signatures as torchvision's C++ registrations).
+_TORCHVISION_OP_SCHEMAS = {
+    "nms": "nms(Tensor dets, Tensor scores, float iou_threshold) -> Tensor",
+    "qnms": "qnms(Tensor dets, Tensor scores, float iou_threshold) -> Tensor",
+}
+_MISSING_OP = re.compile(r"operator torchvision::(\w+) does not exist")
+
+# torchvision ops this process had to define (empty when torchvision imported by itself)
+DEFINED_TORCHVISION_OPS: list[str] = []
+_torchvision_library = None  # the torch.library fragment must stay alive for its definitions to stay registered
+_installed = False
+
+
+def install() -> None:
+    """Bridges every gap listed in the module docstring (idempotent)."""
+    global _installed
+    if _installed:
+        return
+    _install_mujoco_py_stand_in()
+    _import_torchvision()
+    _remember_sim_xml()
+
+    from robomimic.envs.env_robosuite import EnvRobosuite
+    from robomimic.utils import train_utils
+
+    EnvRobosuite.__init__ = _env_init
+    EnvRobosuite.step = _env_step
+    EnvRobosuite.get_observation = _env_get_observation
+    EnvRobosuite.get_state = _env_get_state
+    train_utils.get_exp_dir = experiment_dirs
+    _installed = True
+
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# Imports                                                                                                            #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+def _install_mujoco_py_stand_in() -> None:
+    """robomimic imports mujoco_py only to name the exception a broken simulation raised under mujoco-py."""
+    if "mujoco_py" in sys.modules or importlib.util.find_spec("mujoco_py") is not None:
+        return
+    stand_in = types.ModuleType(
+        "mujoco_py", "Stand-in from veragmil_suite.robomimic_compat (robosuite 1.5 uses mujoco)"
+    )
+    builder = types.ModuleType("mujoco_py.builder")
+    builder.MujocoException = mujoco.FatalError
+    stand_in.builder = builder
+    sys.modules["mujoco_py"] = stand_in
+    sys.modules["mujoco_py.builder"] = builder
+
+
+def _import_torchvision() -> None:
+    """Imports torchvision; defines the op schemas it expects only if the import fails for their absence."""
+    global _torchvision_library
+    for _ in range(len(_TORCHVISION_OP_SCHEMAS) + 1):
+        try:
+            import torchvision  # noqa: F401
+
+            return
+        except RuntimeError as err:
+            match = _MISSING_OP.search(str(err))
+            name = match.group(1) if match else None
+            if name not in _TORCHVISION_OP_SCHEMAS or name in DEFINED_TORCHVISION_OPS:
+                raise
+            # the failed import left half-initialised torchvision modules behind
+            for module_name in [m for m in sys.modules if m == "torchvision" or m.startswith("torchvision.")]:
+                del sys.modules[module_name]
+            import torch
+
+            if _torchvision_library is None:
+                _torchvision_library = torch.library.Library("torchvision", "FRAGMENT")
+            _torchvision_library.define(_TORCHVISION_OP_SCHEMAS[name])
+            DEFINED_TORCHVISION_OPS.append(name)
+
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# robosuite 1.5 environments                                                                                         #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+def _remember_sim_xml() -> None:
+    """Makes every robosuite MjSim keep the XML it was compiled from (see ``model_xml``)."""
+    from robosuite.utils.binding_utils import MjSim
+
+    if getattr(MjSim.from_xml_string, "_keeps_source_xml", False):
+        return
+    compile_xml = MjSim.from_xml_string.__func__
+
+    @functools.wraps(compile_xml)
+    def from_xml_string(cls, xml):
+        sim = compile_xml(cls, xml)
+        sim.source_xml = xml
+        return sim
+
+    from_xml_string._keeps_source_xml = True
+    MjSim.from_xml_string = classmethod(from_xml_string)
+
+
+def model_xml(sim) -> str:
+    """
+    The MJCF a robosuite simulation was compiled from.
+
+    robosuite 1.5's ``sim.model.get_xml()`` returns the XML of whichever model MuJoCo compiled last in the process
+    (a settling scene, another environment), so recorders and robomimic's get_state must not rely on it.
+    """
+    xml = getattr(sim, "source_xml", None)
+    return xml if xml is not None else sim.model.get_xml()
+
+
+def robomimic_observation(env, raw: dict | None = None, postprocess: bool = False) -> dict[str, np.ndarray]:
+    """
+    robomimic's observation dictionary from a robosuite 1.5 environment's observations.
+
+    Every enabled observable is kept under its own name (``robot0_eef_pos``, ``desired_pose``, ...), robosuite's
+    concatenation ``object-state`` becomes ``object``, other ``*-state`` concatenations and empty observables (the
+    spoon's gripper_qpos: robomimic's tensor reshapes fail on them) are left out, and camera images are made
+    upright. Datasets written with this function (postprocess=False) hold exactly what policies
+    see in rollouts; with postprocess=True, the rgb and depth keys robomimic's ObsUtils knows are prepared for
+    the networks (channels first, scaled).
+    """
+    import robosuite.macros
+    from robomimic.utils import obs_utils
+
+    if raw is None:
+        raw = env._get_observations(force_update=True)
+    flip = robosuite.macros.IMAGE_CONVENTION == "opengl"
+    modalities = obs_utils.OBS_KEYS_TO_MODALITIES or {}
+    obs = {}
+    for key, value in raw.items():
+        if key.endswith("-state"):
+            if key == "object-state":
+                obs["object"] = np.array(value)
+            continue
+        value = np.array(value)
+        if value.size == 0:
+            continue
+        observable = env._observables.get(key)
+        if observable is not None and observable.modality == "image":
+            if flip:
+                value = np.ascontiguousarray(value[::-1])
+            # dict.get: robomimic's mapping registers unknown keys as low_dim on [] lookups
+            modality = dict.get(modalities, key)
+            if postprocess and modality in ("rgb", "depth"):
+                value = obs_utils.process_obs(obs=value, obs_modality=modality)
+        obs[key] = value
+    return obs
+
+
+def _registered_keys(modality: str) -> list[str]:
+    from robomimic.utils import obs_utils
+
+    return list((obs_utils.OBS_MODALITIES_TO_KEYS or {}).get(modality, []))
+
+
+def _env_init(
+    self,
+    env_name,
+    render=False,
+    render_offscreen=False,
+    use_image_obs=False,
+    postprocess_visual_obs=True,
+    **kwargs,
+):
+    """
+    EnvRobosuite.__init__ for robosuite 1.5 (same arguments as robomimic's).
+
+    Args:
+        env_name (str): robosuite environment name
+        render (bool): on-screen rendering
+        render_offscreen (bool): off-screen rendering (videos)
+        use_image_obs (bool): render camera observations on every step
+        postprocess_visual_obs (bool): prepare images for the networks (False when writing datasets)
+        kwargs: the environment's keyword arguments (env_kwargs of a dataset's env_args)
+    """
+    import robosuite
+    from robosuite.controllers.composite.composite_controller_factory import refactor_composite_controller_config
+
+    if int(robosuite.__version__.split(".")[0]) != 1 or int(robosuite.__version__.split(".")[1]) < 5:
+        raise RuntimeError(f"veragmil_suite's robomimic layer targets robosuite 1.5, found {robosuite.__version__}")
+    kwargs = copy.deepcopy(kwargs)
+    kwargs.pop("env_name", None)
+    depth_keys = _registered_keys("depth")
+    use_cameras = bool(use_image_obs or depth_keys)
+    kwargs.update(
+        has_renderer=render,
+        has_offscreen_renderer=bool(render_offscreen or use_cameras),
+        ignore_done=True,
+        use_object_obs=True,
+        use_camera_obs=use_cameras,
+        camera_depths=bool(use_cameras and (depth_keys or kwargs.get("camera_depths", False))),
+    )
+    controller = kwargs.get("controller_configs")
+    if isinstance(controller, dict) and "robots" in kwargs:
+        robots = kwargs["robots"]
+        robot = robots if isinstance(robots, str) else robots[0]
+        kwargs["controller_configs"] = refactor_composite_controller_config(controller, robot, ["right"])
+    if kwargs["has_offscreen_renderer"] and os.environ.get("MUJOCO_GL", "").lower() == "egl":
+        import egl_probe
+
+        devices = egl_probe.get_available_devices()
+        if devices:
+            kwargs["render_gpu_device_id"] = devices[0]
+
+    self.postprocess_visual_obs = postprocess_visual_obs
+    self._is_v1 = True
+    self._env_name = env_name
+    self._init_kwargs = copy.deepcopy(kwargs)
+    self.env = robosuite.make(env_name, **kwargs)
+    # robomimic's datasets use joint positions, which robosuite may leave inactive
+    for name in self.env.observation_names:
+        if "joint_pos" in name:
+            self.env.modify_observable(observable_name=name, attribute="active", modifier=True)
+
+
+def _env_step(self, action):
+    """Steps the environment; done is the environment's own termination (the horizon is the caller's)."""
+    raw, reward, done, info = self.env.step(action)
+    return self.get_observation(raw), reward, bool(done) or self.is_done(), info
+
+
+def _env_get_observation(self, di=None):
+    """Observation dictionary (see robomimic_observation)."""
+    return robomimic_observation(self.env, di, postprocess=self.postprocess_visual_obs)
+
+
+def _env_get_state(self):
+    """The simulation's own XML and flattened state, as reset_to expects them."""
+    return dict(model=model_xml(self.env.sim), states=np.array(self.env.sim.get_state().flatten()))
+
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# robomimic's train.py                                                                                               #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+def experiment_dirs(config, auto_remove_exp_dir: bool = False) -> tuple[str, str | None, str]:
+    """
+    Replaces robomimic's get_exp_dir: <output_dir>/<experiment name>/<timestamp>/{logs, models, videos}.
+
+    A relative output_dir is taken from the working directory (robomimic took it from its own package folder in
+    site-packages). An existing experiment folder is kept and the run goes into a new timestamped folder beside
+    the earlier ones: no prompt, no deletion (auto_remove_exp_dir is accepted and ignored). Runs started in the
+    same second get a numbered suffix.
+
+    Returns:
+        3-tuple: log folder, model folder (None when saving is disabled), video folder
+    """
+    base = os.path.join(os.path.abspath(os.path.expanduser(config.train.output_dir)), config.experiment.name)
+    stamp = time.strftime("%Y%m%d%H%M%S")
+    os.makedirs(base, exist_ok=True)
+    run_dir, suffix = os.path.join(base, stamp), 0
+    while True:
+        try:
+            os.makedirs(run_dir)
+            break
+        except FileExistsError:
+            suffix += 1
+            run_dir = os.path.join(base, f"{stamp}_{suffix}")
+    model_dir = os.path.join(run_dir, "models") if config.experiment.save.enabled else None
+    log_dir = os.path.join(run_dir, "logs")
+    video_dir = os.path.join(run_dir, "videos")
+    for folder in (model_dir, log_dir, video_dir):
+        if folder is not None:
+            os.makedirs(folder)
+    return log_dir, model_dir, video_dir
+
+
+@dataclass
+class TrainOutcome:
+    """What robomimic's train() did: it swallows its errors, so the entry point reads them here."""
+
+    config: object = None
+    error: BaseException | None = None
+
+    @property
+    def failed(self) -> bool:
+        return self.error is not None
+
+
+def prepare_train_script(module: types.ModuleType) -> TrainOutcome:
+    """
+    Patches the namespace of robomimic.scripts.train (imported, not yet run) for one run.
+
+    Its train() is wrapped to record any error (its main() prints the error and returns normally), and its
+    DataLoader keeps the last validation batch and rejects a training split smaller than one batch.
+    """
+    outcome = TrainOutcome()
+    robomimic_train = getattr(module.train, "__wrapped__", module.train)
+
+    @functools.wraps(robomimic_train)
+    def train(config, device):
+        outcome.config = config
+        try:
+            return robomimic_train(config, device=device)
+        except Exception as err:
+            outcome.error = err
+            raise
+
+    def data_loader(dataset, batch_size=1, drop_last=False, **kwargs):
+        from torch.utils.data import DataLoader
+
+        config = outcome.config
+        if config is not None and config.experiment.validate:
+            valid_key = config.train.hdf5_validation_filter_key
+            if getattr(dataset, "filter_by_attribute", None) == valid_key:
+                drop_last = False
+        if drop_last and len(dataset) < batch_size:
+            raise ValueError(
+                f"the training split holds {len(dataset)} samples, fewer than one batch (train.batch_size = "
+                f"{batch_size}): record more data or lower the batch size"
+            )
+        return DataLoader(dataset, batch_size=batch_size, drop_last=drop_last, **kwargs)
+
+    module.train = train
+    module.DataLoader = data_loader
+    return outcome
+
+
+@contextlib.contextmanager
+def no_prompts() -> Iterator[None]:
+    """Turns any input() robomimic might call into an error: console commands must never wait on a prompt."""
+
+    def refuse(prompt=""):
+        raise RuntimeError(f"robomimic asked interactively ({str(prompt).strip()!r}); veragmil commands never prompt")
+
+    saved = builtins.input
+    builtins.input = refuse
+    try:
+        yield
+    finally:
+        builtins.input = saved

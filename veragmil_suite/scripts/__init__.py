@@ -1,0 +1,1 @@
+"""Console commands of veragmil_suite (see setup.py entry_points)."""
