@@ -1,0 +1,171 @@
+"""Message schema v1: what is accepted, what is dropped under which reason, the frame header; button events."""
+
+import json
+
+import numpy as np
+import pytest
+
+from veragmil_suite.devices.vr_controls import DEFAULT_BINDINGS, Binding, ButtonEvents
+from veragmil_suite.devices.vr_protocol import (
+    MAX_MESSAGE_BYTES,
+    PANELS_RGB_DEPTH,
+    ControllerState,
+    HelloMessage,
+    PongMessage,
+    PoseMessage,
+    ProtocolError,
+    pack_frame,
+    parse_client_message,
+    unpack_frame,
+)
+
+
+def controller(**overrides):
+    c = {
+        "p": [0.2, 1.1, -0.3],
+        "q": [0, 0, 0, 1],
+        "tracked": True,
+        "trigger": 0.0,
+        "squeeze": 1.0,
+        "stick": [0.0, 0.0],
+        "stick_press": False,
+        "a": False,
+        "b": False,
+    }
+    c.update(overrides)
+    return c
+
+
+def pose(**overrides):
+    m = {
+        "v": 1,
+        "type": "pose",
+        "seq": 7,
+        "t": 1234.5,
+        "visible": True,
+        "head": {"p": [0, 1.6, 0], "q": [0, 0, 0, 1]},
+        "right": controller(),
+        "left": None,
+    }
+    m.update(overrides)
+    return json.dumps(m)
+
+
+def reason(text):
+    with pytest.raises(ProtocolError) as e:
+        parse_client_message(text)
+    return e.value.reason
+
+
+def test_a_pose_message_parses_into_typed_fields():
+    msg = parse_client_message(pose(extra_field_from_a_newer_page=1))
+    assert isinstance(msg, PoseMessage) and msg.seq == 7 and msg.t == 1234.5 and msg.visible
+    assert msg.left is None
+    np.testing.assert_allclose(msg.right.pose.p, [0.2, 1.1, -0.3])
+    assert msg.right.squeeze == 1.0 and not msg.right.a
+    np.testing.assert_allclose(msg.head.q, [0, 0, 0, 1])
+
+
+def test_quaternions_are_normalised_and_untracked_controllers_have_no_pose():
+    msg = parse_client_message(pose(right=controller(q=[0, 0, 0, 1.2])))
+    assert np.linalg.norm(msg.right.pose.q) == pytest.approx(1.0)
+    assert parse_client_message(pose(right=controller(tracked=False))).right.pose is None
+    assert parse_client_message(pose(right=controller(p=None, q=None))).right.pose is None
+
+
+def test_hello_and_pong():
+    assert parse_client_message('{"v":1,"type":"hello","token":"AB-CD","client":"x"}') == HelloMessage("AB-CD", "x")
+    assert parse_client_message('{"v":1,"type":"hello","token":null}') == HelloMessage(None, "")
+    assert parse_client_message('{"v":1,"type":"pong","id":3}') == PongMessage(3)
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "not json",
+        "[1, 2]",
+        '{"v":1,"type":"teleport"}',
+        pose(seq=-1),
+        pose(seq=True),
+        pose(seq=1.5),
+        pose(t="soon"),
+        pose(visible=1),
+        pose(head={"p": [0, 1], "q": [0, 0, 0, 1]}),
+        pose(head={"p": [0, 1, 1e6], "q": [0, 0, 0, 1]}),
+        pose(head={"p": [0, 1, 0], "q": [0, 0, 0, 0.1]}),
+        pose(right=controller(trigger=1.5)),
+        pose(right=controller(squeeze=True)),
+        pose(right=controller(stick=[0, 2])),
+        pose(right=controller(a="yes")),
+        pose(right=[1, 2, 3]),
+        pose(t=float("nan")),
+        pose().replace("1234.5", "Infinity"),
+        '{"v":1,"type":"hello","token":5}',
+        '{"v":1,"type":"pong","id":"x"}',
+    ],
+)
+def test_malformed_messages_are_rejected(text):
+    assert reason(text) == "malformed"
+
+
+def test_binary_oversized_and_other_versions_have_their_own_reasons():
+    assert reason(b"\x00\x01") == "malformed"
+    assert reason(pose(padding="x" * MAX_MESSAGE_BYTES)) == "oversized"
+    assert reason(pose(v=2)) == "version"
+    assert reason(pose(v=True)) == "version"
+    assert reason('{"type":"pose"}') == "version"
+
+
+def test_frame_header_round_trip():
+    data = pack_frame(b"\xff\xd8jpeg", frame_id=42, sim_time=3.25, width=640, height=240, panels=PANELS_RGB_DEPTH)
+    header, jpeg = unpack_frame(data)
+    assert jpeg == b"\xff\xd8jpeg"
+    assert header == dict(version=1, panels=2, frame_id=42, sim_time=3.25, width=640, height=240)
+    assert len(data) - len(jpeg) == 20  # the page reads a 20-byte header
+    with pytest.raises(ValueError):
+        unpack_frame(b"XX" + data[2:])
+
+
+# ---------------------------------------------------------------- buttons
+
+
+def state(**kw):
+    base = dict(pose=None, trigger=0.0, squeeze=0.0, stick=(0.0, 0.0), stick_press=False, a=False, b=False)
+    base.update(kw)
+    return ControllerState(**base)
+
+
+def test_press_fires_once_on_the_edge():
+    ev = ButtonEvents()
+    assert ev.update({"left": state(b=True), "right": state()}, 0.0) == ["recenter"]
+    assert ev.update({"left": state(b=True), "right": state()}, 0.1) == []
+    assert ev.update({"left": state(), "right": state()}, 0.2) == []
+    assert ev.update({"left": state(b=True), "right": state()}, 0.3) == ["recenter"]
+
+
+def test_episode_buttons_need_a_long_press():
+    ev = ButtonEvents()
+    assert ev.update({"right": state(a=True)}, 0.0) == []
+    assert ev.update({"right": state(a=True)}, 0.3) == []
+    assert ev.update({"right": state()}, 0.4) == []  # let go too soon: nothing
+    fired = [e for t in np.arange(1.0, 2.0, 0.05) for e in ev.update({"right": state(a=True)}, t)]
+    assert fired == ["keep"]  # once, after half a second
+
+
+def test_analog_controls_have_hysteresis_and_the_stick_flicks():
+    ev = ButtonEvents()
+    levels = [0.8, 0.5, 0.8, 0.2, 0.8]  # dips to 0.5 are not releases; 0.2 is
+    fired = [ev.update({"left": state(trigger=v)}, i * 0.1) for i, v in enumerate(levels)]
+    assert fired == [["depth"], [], [], [], ["depth"]]
+    assert ev.update({"right": state(stick=(0.0, 0.9))}, 1.0) == ["scale_up"]
+    assert ev.update({"right": state(stick=(0.0, -0.9))}, 1.1) == ["scale_down"]
+
+
+def test_left_handed_operator_swaps_the_hands_and_absent_controllers_release():
+    ev = ButtonEvents(DEFAULT_BINDINGS, main_hand="left")
+    assert ev.update({"left": state(stick_press=True)}, 0.0) == ["precision"]
+    assert ev.update({"right": state(stick_press=True)}, 0.1) == ["mode"]
+    ev.update({}, 0.2)
+    assert ev.update({"left": state(stick_press=True)}, 0.3) == ["precision"]
+    with pytest.raises(ValueError):
+        Binding("main", "a", "fly")
