@@ -1,0 +1,112 @@
+"""Our robomimic configs are robomimic's stock templates with only the settings our data needs changed."""
+
+import json
+from pathlib import Path
+
+import pytest
+import robomimic
+
+from veragmil_suite import robomimic_compat
+
+CONFIG_DIR = Path(__file__).resolve().parents[1] / "configs" / "json"
+TEMPLATE_DIR = Path(robomimic.__file__).parent / "exps" / "templates"
+
+# dataset path, observation keys, rollout and output settings (prefixes match whole subtrees)
+ALLOWED = (
+    "experiment.name",
+    "experiment.rollout.",
+    "experiment.render_video",
+    "experiment.keep_all_videos",
+    "experiment.video_skip",
+    "experiment.save.",
+    "train.data",
+    "train.output_dir",
+    "observation.modalities.obs.",
+)
+# recurrent policies: robomimic's BC-RNN is its BC template with the RNN switched on over a sequence
+ALLOWED_RNN = ("train.seq_length", "algo.rnn.enabled", "algo.rnn.horizon")
+
+CONFIGS = sorted(p.stem for p in CONFIG_DIR.glob("*.json"))
+
+
+def _flatten(tree, prefix=""):
+    if isinstance(tree, dict) and tree:
+        out = {}
+        for key, value in tree.items():
+            out.update(_flatten(value, f"{prefix}{key}."))
+        return out
+    return {prefix[:-1]: tree}
+
+
+def _load(name):
+    with open(CONFIG_DIR / f"{name}.json") as f:
+        return json.load(f)
+
+
+def _differences(config):
+    with open(TEMPLATE_DIR / f"{config['algo_name']}.json") as f:
+        template = _flatten(json.load(f))
+    ours = _flatten(config)
+    return {k for k in template.keys() | ours.keys() if template.get(k, KeyError) != ours.get(k, KeyError)}
+
+
+def test_the_planned_configs_exist():
+    assert {"bc", "bc_rnn", "bcq", "bc_rnn_image"} <= set(CONFIGS)
+
+
+@pytest.mark.parametrize("name", CONFIGS)
+def test_config_differs_from_its_template_only_where_allowed(name):
+    config = _load(name)
+    allowed = ALLOWED + (ALLOWED_RNN if config["algo"].get("rnn", {}).get("enabled") else ())
+    differences = _differences(config)
+    assert differences, "a config identical to its template sets no dataset or observations"
+    unexpected = sorted(
+        k for k in differences if not any(k == a or (a.endswith(".") and k.startswith(a)) for a in allowed)
+    )
+    assert unexpected == [], f"{name}.json changes template settings it should leave alone: {unexpected}"
+
+
+def test_the_check_catches_a_changed_hyperparameter():
+    config = _load("bc")
+    config["algo"]["actor_layer_dims"] = [64]
+    config["train"]["batch_size"] = 7
+    assert {"algo.actor_layer_dims", "train.batch_size"} <= _differences(config)
+
+
+@pytest.mark.parametrize("name", CONFIGS)
+def test_config_loads_into_robomimic(name):
+    from robomimic.config import config_factory
+
+    ours = _load(name)
+    config = config_factory(ours["algo_name"])
+    with config.values_unlocked():
+        config.update(ours)  # robomimic raises on a key its config does not define
+    if config.algo_name == "bc" and config.algo.rnn.enabled:
+        assert config.train.seq_length == config.algo.rnn.horizon > 1
+    assert config.experiment.rollout.horizon == 400  # 20 s at 20 Hz, longer than the paper's 14-19 s demos
+
+
+def test_observation_keys_are_what_scoopgranular_gives():
+    import robosuite
+
+    robomimic_compat.install()
+    env = robosuite.make(
+        "ScoopGranular",
+        robots="XArm7",
+        food="pasta",
+        n_grains=8,
+        pile_variants=1,
+        has_renderer=False,
+        has_offscreen_renderer=True,
+        use_camera_obs=True,
+        camera_names=["overhead"],
+        camera_depths=True,
+    )
+    obs = robomimic_compat.robomimic_observation(env, env.reset())
+    env.close()
+    for name in CONFIGS:
+        modalities = _load(name)["observation"]["modalities"]["obs"]
+        used = [k for keys in modalities.values() for k in keys]
+        assert used and set(used) <= set(obs), f"{name}.json uses keys ScoopGranular lacks: {set(used) - set(obs)}"
+    assert obs["overhead_image"].shape == (84, 84, 3) and obs["overhead_depth"].shape == (84, 84, 1)
+    assert obs["desired_pose"].shape == (7,)

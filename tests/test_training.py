@@ -1,0 +1,201 @@
+"""
+Training through the console entry points: robomimic's stock BC, BC-RNN and BCQ train a few steps on a tiny
+ScoopGranular dataset with validation and a rollout on, write a checkpoint and a video, and the checkpoint loads and
+acts; failed runs exit non-zero.
+"""
+
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import h5py
+import mujoco
+import numpy as np
+import pytest
+from helpers.tiny_dataset import record_tiny_dataset
+
+from veragmil_suite import robomimic_compat
+
+CONFIG_DIR = Path(__file__).resolve().parents[1] / "configs" / "json"
+BIN = Path(sys.executable).parent
+ACTION_DIM = 6  # OSC_POSE delta; the spoon has no gripper DoF
+EPISODE_STEPS = 20
+ROLLOUT_HORIZON = 5
+
+
+def _run(command, *args, timeout=300):
+    return subprocess.run(
+        [str(BIN / command), *map(str, args)],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        stdin=subprocess.DEVNULL,  # a prompt would fail instead of hanging
+    )
+
+
+def _tiny_config(name, dataset, out_dir, experiment, **train):
+    """One of our configs shrunk to a few gradient steps and one short rollout (with video)."""
+    with open(CONFIG_DIR / f"{name}.json") as f:
+        config = json.load(f)
+    config["experiment"].update(
+        name=experiment,
+        epoch_every_n_steps=3,
+        validation_epoch_every_n_steps=1,
+        validate=True,
+        render_video=True,
+    )
+    config["experiment"]["rollout"].update(n=1, horizon=ROLLOUT_HORIZON, rate=1)
+    config["experiment"]["save"]["every_n_epochs"] = 1
+    config["train"].update(
+        data=str(dataset),
+        output_dir=str(out_dir),
+        num_epochs=1,
+        # the validation split (one 20-step episode) is smaller than a batch: robomimic's loader, which drops its
+        # last batch, would serve no batch at all
+        batch_size=32,
+        hdf5_filter_key="train",
+        hdf5_validation_filter_key="valid",
+    )
+    config["train"].update(train)
+    path = Path(out_dir) / f"{experiment}.json"
+    path.write_text(json.dumps(config, indent=2))
+    return path
+
+
+def _printed_json(text, heading):
+    """The JSON block robomimic prints under a heading line."""
+    match = re.search(re.escape(heading) + r"[^\n]*\n(?:Env: [^\n]*\n)?(\{.*?\n\})", text, re.S)
+    assert match, f"robomimic printed no '{heading}' block"
+    return json.loads(match.group(1))
+
+
+@pytest.fixture(scope="module")
+def low_dim_dataset(tmp_path_factory):
+    path = tmp_path_factory.mktemp("data") / "tiny.hdf5"
+    return record_tiny_dataset(str(path), episodes=4, steps=EPISODE_STEPS, valid_episodes=1)
+
+
+@pytest.fixture(scope="module")
+def trained(low_dim_dataset, tmp_path_factory):
+    """Trains each algorithm once per module (lazily) and returns its process result and run folder."""
+    runs = {}
+    out = tmp_path_factory.mktemp("runs")
+
+    def train(algo):
+        if algo not in runs:
+            config = _tiny_config(algo, low_dim_dataset, out, f"tiny_{algo}")
+            result = _run("veragmil-train", "--config", config)
+            run_dirs = sorted((out / f"tiny_{algo}").iterdir())
+            runs[algo] = (result, run_dirs)
+        return runs[algo]
+
+    return train
+
+
+@pytest.mark.parametrize("algo", ["bc", "bc_rnn", "bcq"])
+def test_training_with_rollouts_writes_checkpoint_and_video(trained, algo):
+    result, run_dirs = trained(algo)
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    assert "finished run successfully!" in result.stdout
+    assert len(run_dirs) == 1
+    run = run_dirs[0]
+    train_log = _printed_json(result.stdout, "Train Epoch 1")
+    assert np.isfinite(train_log["Loss"])
+    valid_log = _printed_json(result.stdout, "Validation Epoch 1")
+    assert np.isfinite(valid_log["Loss"])
+    rollout = _printed_json(result.stdout, "Epoch 1 Rollouts took")
+    assert rollout["Horizon"] == ROLLOUT_HORIZON
+    checkpoints = list((run / "models").glob("*.pth"))
+    assert len(checkpoints) == 1
+    videos = list((run / "videos").glob("*.mp4"))
+    assert len(videos) == 1 and videos[0].stat().st_size > 1000
+    assert json.loads((run / "config.json").read_text())["algo_name"] == ("bcq" if algo == "bcq" else "bc")
+
+
+@pytest.mark.parametrize("algo", ["bc", "bc_rnn", "bcq"])
+def test_checkpoint_loads_and_acts(trained, algo):
+    import torch
+
+    robomimic_compat.install()
+    import robomimic.utils.file_utils as FileUtils
+
+    result, run_dirs = trained(algo)
+    assert result.returncode == 0, result.stderr[-3000:]
+    (checkpoint,) = (run_dirs[0] / "models").glob("*.pth")
+    policy, ckpt = FileUtils.policy_from_checkpoint(ckpt_path=str(checkpoint), device=torch.device("cpu"))
+    saved = ckpt["model"]
+    loaded = policy.policy.nets.state_dict()
+    assert saved.keys() == loaded.keys() and all(torch.equal(saved[k], loaded[k]) for k in saved)
+    env, _ = FileUtils.env_from_checkpoint(ckpt_dict=ckpt)
+    assert env.name == "ScoopGranular"
+    policy.start_episode()
+    obs = env.reset()
+    start = obs["robot0_eef_pos"].copy()
+    for _ in range(3):
+        action = policy(ob=obs)
+        assert action.shape == (ACTION_DIM,) and np.all(np.isfinite(action)) and np.all(np.abs(action) <= 1)
+        obs, reward, done, info = env.step(action)
+        assert not info["physics_error"]
+    assert np.linalg.norm(obs["robot0_eef_pos"] - start) > 0
+    env.env.close()
+
+
+def test_run_agent_entry_point_rolls_out_and_records(trained, tmp_path):
+    result, run_dirs = trained("bc")
+    assert result.returncode == 0, result.stderr[-3000:]
+    (checkpoint,) = (run_dirs[0] / "models").glob("*.pth")
+    out = tmp_path / "rollouts.hdf5"
+    agent = _run("veragmil-run-agent", "--agent", checkpoint, "--n_rollouts", 1, "--horizon", 4, "--dataset_path", out)
+    assert agent.returncode == 0, agent.stdout[-3000:] + agent.stderr[-3000:]
+    with h5py.File(out, "r") as f:
+        demo = f["data/demo_0"]
+        assert demo["actions"].shape == (4, ACTION_DIM)
+        # the recorded model is this simulation's (robosuite 1.5 alone returns the last compiled model's XML)
+        model = mujoco.MjModel.from_xml_string(demo.attrs["model_file"])
+        assert demo["states"].shape == (4, 1 + model.nq + model.nv)
+        assert json.loads(f["data"].attrs["env_args"])["env_name"] == "ScoopGranular"
+
+
+def test_image_training_renders_rgb_and_depth_in_rollouts(tmp_path):
+    import torch
+
+    robomimic_compat.install()
+    import robomimic.utils.file_utils as FileUtils
+
+    dataset = record_tiny_dataset(
+        str(tmp_path / "rgbd.hdf5"), episodes=3, steps=8, camera_names=("overhead",), camera_depths=True
+    )
+    config = _tiny_config("bc_rnn_rgbd", dataset, tmp_path, "tiny_rgbd", batch_size=4, seq_length=3)
+    data = json.loads(config.read_text())
+    data["algo"]["rnn"]["horizon"] = 3
+    data["experiment"]["epoch_every_n_steps"] = 1
+    config.write_text(json.dumps(data))
+    result = _run("veragmil-train", "--config", config)
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    assert _printed_json(result.stdout, "Epoch 1 Rollouts took")["Horizon"] == ROLLOUT_HORIZON
+    (checkpoint,) = (tmp_path / "tiny_rgbd").glob("*/models/*.pth")
+    policy, ckpt = FileUtils.policy_from_checkpoint(ckpt_path=str(checkpoint), device=torch.device("cpu"))
+    env, _ = FileUtils.env_from_checkpoint(ckpt_dict=ckpt)
+    policy.start_episode()
+    obs = env.reset()
+    assert obs["overhead_image"].shape == (3, 84, 84) and obs["overhead_image"].dtype == np.float32
+    assert obs["overhead_depth"].shape == (1, 84, 84)
+    assert policy(ob=obs).shape == (ACTION_DIM,)
+    env.env.close()
+
+
+def test_failed_training_exits_nonzero(tmp_path):
+    config = _tiny_config("bc", tmp_path / "missing.hdf5", tmp_path, "missing")
+    result = _run("veragmil-train", "--config", config)
+    assert result.returncode != 0
+    assert "not found" in result.stdout and "training failed" in result.stderr
+    assert "finished run successfully!" not in result.stdout
+
+
+def test_training_split_smaller_than_a_batch_fails_clearly(low_dim_dataset, tmp_path):
+    config = _tiny_config("bc", low_dim_dataset, tmp_path, "big_batch", batch_size=1000)
+    result = _run("veragmil-train", "--config", config)
+    assert result.returncode != 0
+    assert "fewer than one batch" in result.stdout
