@@ -14,8 +14,8 @@ Imports:
       defined only when that import fails, then the import is retried; otherwise nothing is defined.
 
 robosuite 1.5 environments (EnvRobosuite's methods are replaced, so every robomimic path uses them):
-    - ``env_name`` stored inside env_kwargs (robosuite 1.5's own collection scripts do) made robosuite.make fail
-      with a duplicate argument: it is dropped.
+    - ``env_name`` stored inside env_kwargs (robosuite 1.5's own collection scripts do) made environment creation
+      from a dataset or checkpoint fail with a duplicate argument: it is dropped.
     - controller configs of robosuite <= 1.4 (one arm part, e.g. {"type": "OSC_POSE"}) are converted to 1.5's
       composite form with robosuite's own converter.
     - ``camera_depths`` was forced off, and cameras render only for rgb policies: depth observations are rendered
@@ -52,6 +52,7 @@ import builtins
 import contextlib
 import copy
 import functools
+import importlib.machinery
 import importlib.util
 import os
 import re
@@ -88,8 +89,9 @@ def install() -> None:
     _remember_sim_xml()
 
     from robomimic.envs.env_robosuite import EnvRobosuite
-    from robomimic.utils import train_utils
+    from robomimic.utils import env_utils, train_utils
 
+    env_utils.create_env_from_metadata = _create_env_from_metadata(env_utils.create_env_from_metadata)
     EnvRobosuite.__init__ = _env_init
     EnvRobosuite.step = _env_step
     EnvRobosuite.get_observation = _env_get_observation
@@ -111,6 +113,9 @@ def _install_mujoco_py_stand_in() -> None:
         "mujoco_py", "Stand-in from veragmil_suite.robomimic_compat (robosuite 1.5 uses mujoco)"
     )
     builder = types.ModuleType("mujoco_py.builder")
+    # specs, so importlib.util.find_spec("mujoco_py") answers instead of raising
+    stand_in.__spec__ = importlib.machinery.ModuleSpec("mujoco_py", None, is_package=True)
+    builder.__spec__ = importlib.machinery.ModuleSpec("mujoco_py.builder", None)
     builder.MujocoException = mujoco.FatalError
     stand_in.builder = builder
     sys.modules["mujoco_py"] = stand_in
@@ -220,6 +225,21 @@ def _registered_keys(modality: str) -> list[str]:
     return list((obs_utils.OBS_MODALITIES_TO_KEYS or {}).get(modality, []))
 
 
+def _create_env_from_metadata(create):
+    """robomimic's create_env_from_metadata, dropping an env_name stored inside env_kwargs."""
+    if getattr(create, "_drops_env_name", False):
+        return create
+
+    @functools.wraps(create)
+    def create_env_from_metadata(env_meta, *args, **kwargs):
+        if "env_name" in env_meta.get("env_kwargs", {}):
+            env_meta = dict(env_meta, env_kwargs={k: v for k, v in env_meta["env_kwargs"].items() if k != "env_name"})
+        return create(env_meta, *args, **kwargs)
+
+    create_env_from_metadata._drops_env_name = True
+    return create_env_from_metadata
+
+
 def _env_init(
     self,
     env_name,
@@ -246,7 +266,6 @@ def _env_init(
     if int(robosuite.__version__.split(".")[0]) != 1 or int(robosuite.__version__.split(".")[1]) < 5:
         raise RuntimeError(f"veragmil_suite's robomimic layer targets robosuite 1.5, found {robosuite.__version__}")
     kwargs = copy.deepcopy(kwargs)
-    kwargs.pop("env_name", None)
     depth_keys = _registered_keys("depth")
     use_cameras = bool(use_image_obs or depth_keys)
     kwargs.update(

@@ -1,0 +1,322 @@
+"""
+The robomimic 0.3.0 / robosuite 1.5 compatibility layer, gap by gap, and robomimic's dataset scripts through our
+entry points.
+"""
+
+import builtins
+import importlib.util
+import json
+import subprocess
+import sys
+import time
+import types
+from pathlib import Path
+
+import h5py
+import mujoco
+import numpy as np
+import pytest
+from helpers.tiny_dataset import SCOOP_KWARGS, default_controller_config, record_tiny_dataset
+
+from veragmil_suite import robomimic_compat
+
+robomimic_compat.install()
+
+import robomimic.utils.obs_utils as ObsUtils  # noqa: E402
+from robomimic.envs.env_robosuite import EnvRobosuite  # noqa: E402
+
+BIN = Path(sys.executable).parent
+TASK_KEYS = ("robot0_eef_pos", "robot0_eef_quat", "robot0_joint_pos", "desired_pose", "object")
+
+
+def _scoop_env(**kwargs):
+    args = dict(SCOOP_KWARGS, controller_configs=default_controller_config("ScoopGranular", "XArm7"))
+    args.update(kwargs)
+    return EnvRobosuite("ScoopGranular", postprocess_visual_obs=False, **args)
+
+
+def _low_dim_specs(rgb=(), depth=()):
+    ObsUtils.initialize_obs_utils_with_obs_specs(
+        {"obs": {"low_dim": list(TASK_KEYS), "rgb": list(rgb), "depth": list(depth)}}
+    )
+
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# Imports                                                                                                            #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+def test_mujoco_py_stand_in_names_mujocos_error():
+    import mujoco_py
+
+    if "veragmil_suite" in (mujoco_py.__doc__ or ""):  # no real mujoco_py installed
+        assert mujoco_py.builder.MujocoException is mujoco.FatalError
+        assert importlib.util.find_spec("mujoco_py") is mujoco_py.__spec__
+    env = _scoop_env()
+    assert issubclass(mujoco.FatalError, env.rollout_exceptions)
+    env.env.close()
+
+
+def test_torchvision_ops_are_defined_only_when_its_import_failed():
+    import torch
+    import torchvision
+
+    defined = robomimic_compat.DEFINED_TORCHVISION_OPS
+    assert bool(defined) == (not torchvision.extension._has_ops())
+    assert set(defined) <= {"nms", "qnms"}
+    for name in defined:
+        assert torch._C._dispatch_has_kernel_for_dispatch_key(f"torchvision::{name}", "Meta")
+    net = torchvision.models.resnet18()  # what robomimic's visual encoder builds on
+    assert net(torch.zeros(1, 3, 84, 84)).shape == (1, 1000)
+
+
+def test_install_is_idempotent():
+    robomimic_compat.install()
+    robomimic_compat.install()
+    assert EnvRobosuite.get_state is robomimic_compat._env_get_state
+
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# robosuite 1.5 environments                                                                                         #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+def test_observations_keep_task_keys_and_drop_empty_and_concatenated_ones():
+    _low_dim_specs()
+    env = _scoop_env()
+    obs = env.reset()
+    assert set(TASK_KEYS) <= set(obs)
+    assert obs["object"].shape == (15,)  # desired_pose, bowl_pos, spoon_to_desired_pos, spoon_load
+    assert "robot0_gripper_qpos" not in obs  # the spoon has no gripper joints: robosuite gives shape (0,)
+    assert not any(k.endswith("-state") for k in obs)
+    assert all(v.size > 0 for v in obs.values())
+    env.env.close()
+
+
+def test_state_keeps_this_simulations_xml_and_restores_observations():
+    _low_dim_specs()
+    env = _scoop_env()
+    env.reset()
+    for _ in range(3):
+        env.step(np.full(6, 0.3))
+    state = env.get_state()
+    env.env.sim.forward()  # robosuite's lite physics leaves kinematics one substep behind the state after a step
+    before = env.get_observation()
+    # compiling another model makes robosuite's sim.model.get_xml() return that model's XML
+    other = mujoco.MjModel.from_xml_string(
+        "<mujoco><worldbody><body><freejoint/><geom size='.1'/></body></worldbody></mujoco>"
+    )
+    assert env.get_state()["model"] == state["model"]
+    model = mujoco.MjModel.from_xml_string(state["model"])
+    assert (model.nq, model.nv) == (env.env.sim.model.nq, env.env.sim.model.nv) != (other.nq, other.nv)
+
+    fresh = _scoop_env()
+    fresh.reset()
+    after = fresh.reset_to(state)
+    for key in TASK_KEYS:
+        np.testing.assert_allclose(after[key], before[key], atol=1e-9, err_msg=key)
+    env.env.close()
+    fresh.env.close()
+
+
+def test_images_are_upright_under_either_image_convention(monkeypatch):
+    import robosuite.macros
+
+    _low_dim_specs(rgb=["overhead_image"], depth=["overhead_depth"])
+    images = {}
+    for convention in ("opengl", "opencv"):
+        monkeypatch.setattr(robosuite.macros, "IMAGE_CONVENTION", convention)
+        env = _scoop_env(seed=3, camera_names=["overhead"], camera_depths=True)
+        env.postprocess_visual_obs = False
+        images[convention] = env.reset()
+        env.env.close()
+    for key in ("overhead_image", "overhead_depth"):
+        np.testing.assert_array_equal(images["opengl"][key], images["opencv"][key])
+    # upright: the table (light, near) fills the bottom rows; under opengl robosuite alone gives it upside down
+    depth = images["opengl"]["overhead_depth"][..., 0]
+    assert depth[-5:].mean() < depth[:5].mean()
+
+
+def test_depth_policy_renders_depth_without_rgb_keys():
+    _low_dim_specs(depth=["overhead_depth"])
+    env = EnvRobosuite(
+        "ScoopGranular",
+        use_image_obs=False,  # robomimic decides this from rgb keys only
+        camera_names=["overhead"],
+        controller_configs=default_controller_config("ScoopGranular", "XArm7"),
+        **{k: v for k, v in SCOOP_KWARGS.items()},
+    )
+    obs = env.reset()
+    assert obs["overhead_depth"].shape == (1, 84, 84) and obs["overhead_depth"].dtype == np.float32
+    assert env.serialize()["env_kwargs"]["camera_depths"] is True
+    env.env.close()
+
+
+def test_env_kwargs_with_env_name_and_a_robosuite_14_controller_config():
+    import robomimic.utils.env_utils as EnvUtils
+    from robosuite.controllers import load_part_controller_config
+
+    _low_dim_specs()
+    legacy = load_part_controller_config(default_controller="OSC_POSE")  # robosuite <= 1.4 datasets store this
+    env_meta = dict(
+        env_name="Lift", type=1, env_kwargs=dict(env_name="Lift", robots=["Panda"], controller_configs=legacy)
+    )
+    env = EnvUtils.create_env_from_metadata(env_meta=env_meta)
+    assert env.action_dimension == 7
+    assert env.serialize()["env_kwargs"]["controller_configs"]["body_parts"]["right"]["type"] == "OSC_POSE"
+    env.env.close()
+
+
+def test_step_reports_the_environments_own_termination():
+    _low_dim_specs()
+    env = _scoop_env()
+    env.reset()
+    assert env.step(np.zeros(6))[2] is False  # robomimic's environments run to the caller's horizon
+    env.env._physics_error = "simulated blow-up"  # how ScoopGranular ends an episode on a physics error
+    obs, reward, done, info = env.step(np.zeros(6))
+    assert done is True and info["physics_error"] == "simulated blow-up"
+    env.env.close()
+
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# robomimic's train.py                                                                                               #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+def _config(output_dir, name="exp", save=True):
+    from robomimic.config import config_factory
+
+    config = config_factory("bc")
+    with config.values_unlocked():
+        config.train.output_dir = output_dir
+        config.experiment.name = name
+        config.experiment.save.enabled = save
+    return config
+
+
+def test_experiment_dirs_relative_to_cwd_never_prompt_nor_delete(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(builtins, "input", lambda *a: pytest.fail("prompted"))
+    config = _config("runs")
+    first = robomimic_compat.experiment_dirs(config)
+    marker = Path(first[0]) / "kept.txt"
+    marker.write_text("earlier run")
+    second = robomimic_compat.experiment_dirs(config)  # same second, same experiment
+    assert Path(first[0]).parent != Path(second[0]).parent
+    assert marker.read_text() == "earlier run"
+    for log_dir, model_dir, video_dir in (first, second):
+        assert Path(log_dir).is_relative_to(tmp_path / "runs" / "exp")
+        assert Path(log_dir).is_dir() and Path(model_dir).is_dir() and Path(video_dir).is_dir()
+    assert robomimic_compat.experiment_dirs(_config("runs", save=False))[1] is None
+
+
+def test_train_script_records_errors_and_keeps_the_last_validation_batch():
+    module = types.ModuleType("fake_train")
+
+    def train(config, device):
+        loader = module.DataLoader(valid, batch_size=4, drop_last=True)
+        assert len(list(loader)) == 1  # 3 samples, batch 4: robomimic's loader would serve none
+        raise RuntimeError("boom")
+
+    class Split(list):
+        def __init__(self, n, key):
+            super().__init__(np.zeros((n, 2), dtype=np.float32))
+            self.filter_by_attribute = key
+
+    valid = Split(3, "valid")
+    module.train = train
+    outcome = robomimic_compat.prepare_train_script(module)
+    config = _config("runs")
+    with config.values_unlocked():
+        config.experiment.validate = True
+        config.train.hdf5_filter_key = "train"
+        config.train.hdf5_validation_filter_key = "valid"
+    with pytest.raises(RuntimeError, match="boom"):
+        module.train(config, device=None)
+    assert outcome.failed and str(outcome.error) == "boom"
+    with pytest.raises(ValueError, match="fewer than one batch"):
+        module.DataLoader(Split(3, "train"), batch_size=4, drop_last=True)
+
+
+def test_no_prompts_turns_input_into_an_error():
+    saved = builtins.input
+    with robomimic_compat.no_prompts():
+        with pytest.raises(RuntimeError, match="never prompt"):
+            input("overwrite? (y/n)")
+    assert builtins.input is saved
+
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# robomimic's dataset scripts through our entry points                                                               #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    path = tmp_path_factory.mktemp("scripts") / "tiny.hdf5"
+    return Path(record_tiny_dataset(str(path), episodes=2, steps=6, camera_names=("overhead",)))
+
+
+def _run(command, *args):
+    return subprocess.run(
+        [str(BIN / command), *map(str, args)], capture_output=True, text=True, timeout=300, stdin=subprocess.DEVNULL
+    )
+
+
+def test_dataset_info_entry_point(dataset):
+    result = _run("veragmil-robomimic-dataset-info", "--dataset", dataset)
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert "total transitions: 12" in result.stdout and "total trajectories: 2" in result.stdout
+    assert '"env_name": "ScoopGranular"' in result.stdout
+
+
+def test_playback_entry_point_writes_a_video(dataset, tmp_path):
+    video = tmp_path / "playback.mp4"
+    result = _run("veragmil-robomimic-playback", "--dataset", dataset, "--video_path", video, "--video_skip", 2)
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert "Playing back episode: demo_1" in result.stdout
+    assert video.stat().st_size > 1000
+
+
+def test_states_to_obs_entry_point_reproduces_the_recorded_observations(dataset):
+    result = _run(
+        "veragmil-robomimic-states-to-obs",
+        "--dataset",
+        dataset,
+        "--output_name",
+        "extracted.hdf5",
+        "--camera_names",
+        "overhead",
+        "--done_mode",
+        1,
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+    with h5py.File(dataset, "r") as src, h5py.File(dataset.parent / "extracted.hdf5", "r") as out:
+        assert json.loads(out["data"].attrs["env_args"])["env_name"] == "ScoopGranular"
+        assert list(out["mask/valid"]) == list(src["mask/valid"])
+        for demo in ("demo_0", "demo_1"):
+            for key in TASK_KEYS:
+                np.testing.assert_allclose(out[f"data/{demo}/obs/{key}"], src[f"data/{demo}/obs/{key}"], atol=1e-9)
+            extracted = out[f"data/{demo}/obs/overhead_image"][()].astype(float)
+            assert np.abs(extracted - src[f"data/{demo}/obs/overhead_image"][()]).mean() < 1.0
+            assert out[f"data/{demo}/dones"][-1] == 1
+
+
+def test_a_failing_script_exits_nonzero(tmp_path):
+    result = _run("veragmil-robomimic-dataset-info", "--dataset", tmp_path / "missing.hdf5")
+    assert result.returncode != 0
+
+
+def test_module_form_dispatches_to_the_same_commands():
+    usage = subprocess.run(
+        [sys.executable, "-m", "veragmil_suite.scripts.robomimic_entry", "nonsense"], capture_output=True, text=True
+    )
+    assert usage.returncode == 2 and "train" in usage.stdout
+    started = time.time()
+    helped = subprocess.run(
+        [sys.executable, "-m", "veragmil_suite.scripts.robomimic_entry", "train", "--help"],
+        capture_output=True,
+        text=True,
+    )
+    assert helped.returncode == 0 and "--dataset" in helped.stdout
+    assert time.time() - started < 120
