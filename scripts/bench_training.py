@@ -1,0 +1,119 @@
+"""
+Training throughput of robomimic's BC, BC-RNN and BCQ with our configs: gradient steps and samples per second.
+
+Runs robomimic's own training epoch (data loading, batch processing, forward and backward pass) on a dataset of
+ScoopGranular episodes, with the configs' own batch sizes and networks and robomimic's 2 torch threads. Without
+--dataset, a small random-action dataset (low-dim plus 84x84 overhead RGB-D) is recorded first.
+
+    python scripts/bench_training.py                       # bc, bc_rnn, bcq, bc_image
+    python scripts/bench_training.py --algos bc_rnn_image --image-steps 2
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+os.environ.setdefault("MUJOCO_GL", "osmesa")
+os.environ.setdefault("PYOPENGL_PLATFORM", os.environ["MUJOCO_GL"])
+os.environ.setdefault("PYNPUT_BACKEND", "dummy")
+
+ROOT = Path(__file__).resolve().parents[1]
+CONFIG_DIR = ROOT / "configs" / "json"
+
+
+def bench_algo(name: str, dataset: str, steps: int) -> dict:
+    """Times ``steps`` gradient steps of config ``name`` on ``dataset`` (after 2 warm-up steps)."""
+    import torch
+    from robomimic.algo import algo_factory
+    from robomimic.config import config_factory
+    from robomimic.utils import file_utils, obs_utils, train_utils
+    from torch.utils.data import DataLoader
+
+    with open(CONFIG_DIR / f"{name}.json") as f:
+        ours = json.load(f)
+    config = config_factory(ours["algo_name"])
+    with config.values_unlocked():
+        config.update(ours)
+        config.train.data = dataset
+        config.experiment.validate = False
+    obs_utils.initialize_obs_utils_with_config(config)
+    shape_meta = file_utils.get_shape_metadata_from_dataset(dataset_path=dataset, all_obs_keys=config.all_obs_keys)
+    torch.manual_seed(config.train.seed)
+    model = algo_factory(
+        algo_name=config.algo_name,
+        config=config,
+        obs_key_shapes=shape_meta["all_shapes"],
+        ac_dim=shape_meta["ac_dim"],
+        device=torch.device("cpu"),
+    )
+    trainset, _ = train_utils.load_data_for_training(config, obs_keys=shape_meta["all_obs_keys"])
+    loader = DataLoader(trainset, batch_size=config.train.batch_size, shuffle=True, drop_last=True)
+    train_utils.run_epoch(model=model, data_loader=loader, epoch=1, num_steps=2)
+    start = time.perf_counter()
+    train_utils.run_epoch(model=model, data_loader=loader, epoch=1, num_steps=steps)
+    elapsed = time.perf_counter() - start
+    batch, seq = config.train.batch_size, config.train.seq_length
+    return dict(
+        config=name,
+        batch=batch,
+        seq=seq,
+        steps_per_s=steps / elapsed,
+        samples_per_s=steps * batch / elapsed,
+        frames_per_s=steps * batch * seq / elapsed,
+    )
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--algos", nargs="+", default=["bc", "bc_rnn", "bcq", "bc_image"], help="configs/json names")
+    parser.add_argument("--dataset", default=None, help="robomimic HDF5 with the configs' observation keys")
+    parser.add_argument("--steps", type=int, default=30, help="timed gradient steps, low-dim configs")
+    parser.add_argument("--image-steps", type=int, default=3, help="timed gradient steps, image configs")
+    args = parser.parse_args(argv)
+
+    from veragmil_suite import robomimic_compat
+
+    robomimic_compat.install()
+    import torch
+
+    torch.set_num_threads(2)  # as robomimic's train.py does
+    dataset = args.dataset
+    if dataset is None:
+        sys.path.insert(0, str(ROOT / "tests"))
+        from helpers.tiny_dataset import record_tiny_dataset
+
+        dataset = os.path.join(tempfile.mkdtemp(prefix="bench_training_"), "scoop.hdf5")
+        started = time.perf_counter()
+        record_tiny_dataset(dataset, episodes=6, steps=40, camera_names=("overhead",), camera_depths=True)
+        print(f"recorded 6 x 40 ScoopGranular steps with RGB-D in {time.perf_counter() - started:.0f} s: {dataset}")
+
+    rows = []
+    for name in args.algos:
+        steps = args.image_steps if "image" in name or "rgbd" in name else args.steps
+        rows.append(bench_algo(name, dataset, steps))
+        print(f"{name}: {rows[-1]['samples_per_s']:.0f} samples/s", flush=True)
+
+    print(f"\ntraining throughput, CPU, {torch.get_num_threads()} torch threads (robomimic {_version('robomimic')})")
+    print("| config | batch | seq | gradient steps/s | samples/s | frames/s |")
+    print("|---|---|---|---|---|---|")
+    for r in rows:
+        print(
+            f"| {r['config']} | {r['batch']} | {r['seq']} | {r['steps_per_s']:.2f} | {r['samples_per_s']:.0f} | "
+            f"{r['frames_per_s']:.0f} |"
+        )
+
+
+def _version(package: str) -> str:
+    from importlib.metadata import version
+
+    return version(package)
+
+
+if __name__ == "__main__":
+    main()
