@@ -1,0 +1,309 @@
+"""A scripted scooping demonstrator for ScoopGranular, with operator profiles, so datasets need no human.
+
+The expert is closed-loop on the spoon's pose: every step it reads the end-effector pose and the bowl's rim from
+the observation and drives the spoon toward the current phase's waypoint, placed relative to the bowl wherever it
+stands. Phases: approach above the near side of the pile, dip into it at an angle, drag through it toward the far
+wall, level the spoon so its bowl holds the load, lift clear of the rim, carry to the post-scoop (desired) pose,
+hold there.
+
+Operator profiles set speed and noise. The ``spacemouse`` profile imitates 3D-mouse teleoperation (one axis at a
+time, coarse and jerky input); its data is scripted data all the same and is labelled so.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+import robosuite.utils.transform_utils as T
+
+from veragmil_suite.environments.scoop import POST_SCOOP_EEF_ROT, PRE_SCOOP_EEF_ROT
+
+# While lifting and carrying, the spoon's tip is raised a little past level, as people do, so the load rests against
+# the back of the spoon's bowl instead of sliding off its tip.
+TIP_BACK = T.quat2mat(T.axisangle2quat(np.array([0.0, -np.deg2rad(10.0), 0.0])))
+
+
+@dataclass(frozen=True)
+class OperatorProfile:
+    """How the scripted operator moves.
+
+    Attributes:
+        name: label stored with the data.
+        speed: scales every phase's translation and rotation speed.
+        pos_noise: std of the smooth noise added to translation commands (m/s).
+        rot_noise: std of the smooth noise added to rotation commands (rad/s).
+        noise_time_s: correlation time of that noise (a hand's drift, not white jitter).
+        plan_jitter_m: per-episode random offset of the dip and drag waypoints (no two scoops alike).
+        one_axis: move along one world axis (or rotate about one) at a time, as a 3D-mouse user does.
+        input_levels: quantize each command to this many magnitude levels per direction (0: continuous).
+        release_prob: per-step chance that the operator lets go of the input for a moment (jerky motion).
+        max_accel: translation acceleration limit (m/s^2); a 3D mouse has none worth the name.
+        max_hold_s: longest the spoon is held at the post-scoop pose before the expert gives up (an episode normally
+            ends sooner, once success has held for a moment).
+    """
+
+    name: str
+    speed: float = 1.0
+    pos_noise: float = 0.0
+    rot_noise: float = 0.0
+    noise_time_s: float = 0.4
+    plan_jitter_m: float = 0.002
+    one_axis: bool = False
+    input_levels: int = 0
+    release_prob: float = 0.0
+    max_accel: float = 0.6
+    max_hold_s: float = 3.0
+
+
+PROFILES = {
+    "expert": OperatorProfile("expert"),
+    "careful": OperatorProfile("careful", speed=0.7, pos_noise=0.002, rot_noise=0.01),
+    "hasty": OperatorProfile("hasty", speed=1.4, pos_noise=0.006, rot_noise=0.03, plan_jitter_m=0.004, max_accel=1.2),
+    "noisy": OperatorProfile("noisy", pos_noise=0.008, rot_noise=0.04, plan_jitter_m=0.004),
+    "spacemouse": OperatorProfile(
+        "spacemouse",
+        speed=1.0,
+        pos_noise=0.004,
+        rot_noise=0.02,
+        plan_jitter_m=0.004,
+        one_axis=True,
+        input_levels=3,
+        release_prob=0.06,
+        max_accel=10.0,
+    ),
+}
+
+
+@dataclass(frozen=True)
+class Phase:
+    """One leg of the scoop: a waypoint (relative to the bowl, see ScriptedScooper._waypoint) and how to reach it."""
+
+    name: str
+    speed: float  # m/s
+    turn_speed: float  # rad/s
+    pos_tol: float  # m
+    rot_tol: float  # rad
+    max_time_s: float
+
+
+PHASES = (
+    Phase("approach", speed=0.10, turn_speed=0.6, pos_tol=0.006, rot_tol=0.05, max_time_s=3.0),
+    Phase("dip", speed=0.04, turn_speed=0.6, pos_tol=0.004, rot_tol=0.05, max_time_s=2.0),
+    Phase("drag", speed=0.03, turn_speed=0.6, pos_tol=0.004, rot_tol=0.05, max_time_s=2.5),
+    Phase("level", speed=0.02, turn_speed=0.3, pos_tol=0.004, rot_tol=0.04, max_time_s=4.0),
+    Phase("lift", speed=0.03, turn_speed=0.3, pos_tol=0.006, rot_tol=0.05, max_time_s=3.0),
+    Phase("carry", speed=0.06, turn_speed=0.3, pos_tol=0.008, rot_tol=0.05, max_time_s=5.0),
+    Phase("hold", speed=0.03, turn_speed=0.2, pos_tol=0.0, rot_tol=0.0, max_time_s=np.inf),
+)
+# the speed toward a waypoint falls off as this rate (1/s) times the remaining distance: no overshoot
+APPROACH_RATE = 4.0
+# integral of the velocity shortfall (goal offset per unit of lagging displacement), its bound (m, m, m, rad, rad,
+# rad) and its per-step leak (forgets a push against the pile or the floor within a second or so)
+INTEGRAL_GAIN = 1.5
+INTEGRAL_LIMIT = np.array([0.015, 0.015, 0.015, 0.15, 0.15, 0.15])
+INTEGRAL_LEAK = 0.97
+PHASE_NAMES = tuple(p.name for p in PHASES)
+
+
+def get_profile(profile: str | OperatorProfile) -> OperatorProfile:
+    """A profile by name (PROFILES) or the profile itself; a ValueError names the accepted ones."""
+    if isinstance(profile, OperatorProfile):
+        return profile
+    if profile not in PROFILES:
+        raise ValueError(f"Unknown operator profile {profile!r}; accepted profiles: {', '.join(PROFILES)}")
+    return PROFILES[profile]
+
+
+class ScriptedScooper:
+    """
+    Scripted scooping expert for ScoopGranular with an OSC_POSE (delta) arm controller.
+
+    Args:
+        env (ScoopGranular): the environment (read for the bowl's shape, the control rate and the controller frame)
+        profile (str or OperatorProfile): operator profile (PROFILES) for speed and noise
+        seed (None or int): seed of the profile's noise and of each episode's plan jitter
+
+    Raises:
+        ValueError: [Unknown profile, or an arm controller that does not take delta poses]
+    """
+
+    def __init__(self, env, profile: str | OperatorProfile = "expert", seed: int | None = None):
+        self.env = env
+        self.profile = get_profile(profile)
+        self.rng = np.random.default_rng(seed)
+        robot = env.robots[0]
+        self.arm = robot.arms[0]
+        self.controller = robot.part_controllers[self.arm]
+        if getattr(self.controller, "input_type", None) != "delta" or self.controller.name != "OSC_POSE":
+            raise ValueError(
+                f"the scripted expert drives an OSC_POSE controller with delta input, not {self.controller.name} "
+                f"({getattr(self.controller, 'input_type', '?')} input)"
+            )
+        self.dt = 1.0 / env.control_freq
+        # action units: a command of 1 moves the goal by output_max (m, rad) per control step
+        self.action_scale = np.asarray(self.controller.output_max, dtype=float)
+        # OSC re-anchors the goal at the achieved pose every step, so the spoon settles at the speed where the
+        # stiffness pull kp * offset equals the damping kd * speed: an offset of speed * kd / kp gives that speed
+        self.speed_to_offset = np.asarray(self.controller.kd, dtype=float) / np.asarray(self.controller.kp, dtype=float)
+        self.reset()
+
+    # -------------------------------------------------------------------------------------------------------- #
+
+    def reset(self) -> None:
+        """Start a new episode: first phase, fresh noise, a new random plan."""
+        self.phase_index = 0
+        self.phase_steps = 0
+        self.hold_steps = 0
+        self.noise = np.zeros(6)
+        self.integral = np.zeros(6)
+        self.last_vel = np.zeros(3)
+        self.last_pose = None
+        self.axis = None
+        j = self.profile.plan_jitter_m
+        self.jitter = dict(
+            y=self.rng.uniform(-j, j),
+            dip_x=self.rng.uniform(-j, j),
+            dip_z=self.rng.uniform(-j / 2, j / 2),
+            drag_x=self.rng.uniform(-j, j),
+        )
+
+    @property
+    def phase(self) -> str:
+        return PHASES[self.phase_index].name
+
+    @property
+    def done(self) -> bool:
+        """True once the spoon has been held at the post-scoop pose for the profile's longest hold."""
+        return self.phase == "hold" and self.hold_steps * self.dt >= self.profile.max_hold_s
+
+    def act(self, obs: dict) -> np.ndarray:
+        """The action (6-D OSC_POSE delta in [-1, 1]) for observation ``obs``; advances the phase when reached."""
+        eef_pos = np.asarray(obs["robot0_eef_pos"], dtype=float)
+        eef_rot = T.quat2mat(np.asarray(obs["robot0_eef_quat_site"], dtype=float))
+        phase = PHASES[self.phase_index]
+        target_pos, target_rot = self._waypoint(phase.name, obs)
+        pos_err = target_pos - eef_pos
+        rot_err = T.quat2axisangle(T.mat2quat(target_rot @ eef_rot.T))
+        reached = np.linalg.norm(pos_err) <= phase.pos_tol and np.linalg.norm(rot_err) <= phase.rot_tol
+        timed_out = self.phase_steps * self.dt >= phase.max_time_s
+        if phase.name != "hold" and (reached or timed_out):
+            self.phase_index += 1
+            self.phase_steps = 0
+            phase = PHASES[self.phase_index]
+            target_pos, target_rot = self._waypoint(phase.name, obs)
+            pos_err = target_pos - eef_pos
+            rot_err = T.quat2axisangle(T.mat2quat(target_rot @ eef_rot.T))
+        self.phase_steps += 1
+        if phase.name == "hold":
+            self.hold_steps += 1
+
+        vel = _clip_norm(pos_err * APPROACH_RATE, phase.speed * self.profile.speed)
+        dv = _clip_norm(vel - self.last_vel, self.profile.max_accel * self.dt)
+        vel = self.last_vel + dv
+        # never push past the waypoint: the acceleration limit must not overshoot it
+        vel = _clip_norm(vel, np.linalg.norm(pos_err) * APPROACH_RATE)
+        self.last_vel = vel
+        ang = _clip_norm(rot_err * APPROACH_RATE, phase.turn_speed * self.profile.speed)
+        cmd = np.concatenate([vel, ang])
+        cmd += self._noise()
+        err = np.concatenate([pos_err, rot_err])
+        if self.profile.one_axis:
+            cmd = self._one_axis(cmd, err)
+        # world-frame velocity -> goal offset that OSC turns into that velocity. XArm7's joints have 1 Nm of
+        # friction that swallows small offsets (the spoon stalls short of slow targets), so the offset also carries
+        # the integral of the velocity shortfall: a reference motion the spoon is pulled along.
+        measured = self._measured_velocity(eef_pos, eef_rot)
+        self.integral = np.clip(
+            INTEGRAL_LEAK * self.integral + INTEGRAL_GAIN * (cmd - measured) * self.dt, -INTEGRAL_LIMIT, INTEGRAL_LIMIT
+        )
+        delta = cmd * self.speed_to_offset + self.integral
+        base_rot = self._controller_frame()
+        delta = np.concatenate([base_rot.T @ delta[:3], base_rot.T @ delta[3:]])
+        action = delta / self.action_scale
+        if self.profile.input_levels:
+            action = self._quantize(action)
+        if self.profile.release_prob and self.rng.random() < self.profile.release_prob:
+            action = np.zeros(6)
+        return np.clip(action, -1.0, 1.0)
+
+    # -------------------------------------------------------------------------------------------------------- #
+
+    def _waypoint(self, name: str, obs: dict) -> tuple[np.ndarray, np.ndarray]:
+        """Spoon (eef) target of a phase, from the bowl's rim and shape: robust to where the bowl stands."""
+        rim = np.asarray(obs["bowl_pos"], dtype=float)
+        shape = self.env.bowl_shape
+        floor_z = rim[2] - shape.depth
+        floor_r = min(shape.floor_semi_axes)
+        rim_r = min(shape.rim_semi_axes)
+        j = self.jitter
+        y = rim[1] + j["y"]
+        if name == "approach":
+            return np.array([rim[0] - 0.5 * rim_r, y, rim[2] + 0.01]), PRE_SCOOP_EEF_ROT
+        if name == "dip":
+            return np.array([rim[0] - floor_r - 0.005 + j["dip_x"], y, floor_z + 0.02 + j["dip_z"]]), PRE_SCOOP_EEF_ROT
+        if name == "drag":
+            return np.array([rim[0] - 0.005 + j["drag_x"], y, floor_z + 0.017]), PRE_SCOOP_EEF_ROT
+        if name == "level":
+            # turning level while easing back: the tip comes up through the pile instead of pushing it over the rim
+            return np.array([rim[0] - 0.012 + j["drag_x"], y, floor_z + 0.02]), POST_SCOOP_EEF_ROT
+        desired = np.asarray(obs["desired_pose"], dtype=float)
+        desired_rot = T.quat2mat(desired[3:7])
+        if name == "lift":
+            return np.array([rim[0], y, rim[2] + 0.04]), TIP_BACK @ desired_rot
+        if name == "carry":
+            return desired[:3].copy(), TIP_BACK @ desired_rot
+        return desired[:3].copy(), desired_rot
+
+    def _measured_velocity(self, pos: np.ndarray, rot: np.ndarray) -> np.ndarray:
+        """The spoon's linear and angular velocity over the last control step, from the observed poses."""
+        last, self.last_pose = self.last_pose, (pos, rot)
+        if last is None:
+            return np.zeros(6)
+        ang = T.quat2axisangle(T.mat2quat(rot @ last[1].T))
+        return np.concatenate([pos - last[0], ang]) / self.dt
+
+    def _controller_frame(self) -> np.ndarray:
+        """Rotation of the frame OSC reads deltas in (robosuite 1.5: a site on the arm's first link)."""
+        composite = self.env.robots[0].composite_controller
+        if getattr(self.controller, "input_ref_frame", "base") == "world":
+            return np.eye(3)
+        return composite.get_controller_base_pose(self.arm)[1]
+
+    def _noise(self) -> np.ndarray:
+        """Ornstein-Uhlenbeck noise: a slowly wandering hand, not white jitter."""
+        p = self.profile
+        if not (p.pos_noise or p.rot_noise):
+            return np.zeros(6)
+        a = np.exp(-self.dt / p.noise_time_s)
+        std = np.array([p.pos_noise] * 3 + [p.rot_noise] * 3)
+        self.noise = a * self.noise + np.sqrt(1 - a**2) * std * self.rng.standard_normal(6)
+        return self.noise
+
+    def _one_axis(self, cmd: np.ndarray, err: np.ndarray) -> np.ndarray:
+        """Keep one axis of the command: the one with the largest remaining error (sticky, as a hand is)."""
+        scale = np.array([1.0, 1.0, 1.0, 0.1, 0.1, 0.1])  # 0.1 rad of error weighs like 1 cm
+        weighted = np.abs(err) * scale
+        if self.axis is None or weighted[self.axis] < 0.3 * weighted.max() or weighted[self.axis] < 0.002:
+            self.axis = int(np.argmax(weighted))
+        out = np.zeros(6)
+        out[self.axis] = cmd[self.axis]
+        return out
+
+    def _quantize(self, action: np.ndarray) -> np.ndarray:
+        """Coarse input: each component snapped to one of a few levels (a 3D mouse's knob is all or nothing)."""
+        levels = self.profile.input_levels
+        peak = np.max(np.abs(action))
+        if peak == 0:
+            return action
+        return np.round(action / peak * levels) / levels * peak
+
+
+def _clip_norm(v: np.ndarray, limit: float) -> np.ndarray:
+    n = np.linalg.norm(v)
+    return v if n <= limit or n == 0 else v * (limit / n)
+
+
+def with_overrides(profile: str | OperatorProfile, **changes) -> OperatorProfile:
+    """A profile with some fields changed (e.g. a slower expert: ``with_overrides("expert", speed=0.5)``)."""
+    return replace(get_profile(profile), **changes)

@@ -1,0 +1,626 @@
+"""Demonstrations in robomimic's HDF5 schema, written directly and flushed episode by episode.
+
+One file layout, defined here and nowhere else (robomimic's, plus our provenance)::
+
+    data                      attrs: env_args (robomimic env meta, JSON), total, provenance (see DemoWriter)
+      demo_N                  attrs: num_samples, model_file, env_args, provenance and the episode's metrics
+        actions (T, 6)        OSC_POSE deltas in [-1, 1]
+        states (T, S)         flattened MuJoCo state *before* each action (robomimic's convention)
+        rewards (T,), dones (T,)   dones: 1 where the next state is a success, and at the last step
+        obs/<key>, next_obs/<key>  robomimic's observation dict: robot0_* proprioception, ``object`` (robosuite's
+                                   object-state), the task's object keys one by one, camera images upright
+    mask/train, mask/valid, mask/<food>, mask/success   robomimic filter keys (demo names)
+
+The file is closed between episodes, so killing the collecting process (SIGINT or SIGKILL) mid-episode leaves
+every finished episode readable. An episode is written under a temporary name and renamed to ``demo_N`` once
+complete; appending continues the numbering. Recording starts from robomimic's ``reset_to(get_state())``
+(:func:`restart_from_current_state`), so replaying the actions open loop reproduces the recorded states exactly.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime
+import json
+import platform
+import re
+import signal
+import subprocess
+import threading
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import h5py
+import mujoco
+import numpy as np
+import robosuite
+
+import veragmil_suite
+
+ENV_NAME = "ScoopGranular"
+ROBOSUITE_ENV_TYPE = 1  # robomimic's EnvType.ROBOSUITE_TYPE
+WRITER = "veragmil_suite.recording"
+FORMAT_VERSION = 1
+DEMO_PREFIX = "demo_"
+_PENDING_PREFIX = "incomplete_"
+IMAGE_COMPRESSION = dict(compression="gzip", compression_opts=4, shuffle=True)
+# env_kwargs that must agree for demos to share a file: they fix the action and observation spaces
+COMPATIBLE_KWARGS = ("robots", "controller_configs", "control_freq", "camera_names", "camera_heights", "camera_widths")
+METRIC_KEYS = (
+    "success",
+    "grains_in_spoon",
+    "grains_spilled",
+    "spilled_volume_cm3",
+    "spill_fraction",
+    "scooped_volume_cm3",
+    "spoon_volume_cm3",
+    "completion_time_s",
+    "physics_error",
+)
+
+
+class DatasetError(ValueError):
+    """A file that is not a ScoopGranular dataset, is corrupt, or does not match what is written to it."""
+
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# Environment metadata and the exact-replay start                                                                  #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+def env_meta(env_kwargs: dict) -> dict:
+    """robomimic's env metadata (``data`` attribute ``env_args``) for ScoopGranular made with ``env_kwargs``.
+
+    ``env_kwargs`` are the keyword arguments given to ``robosuite.make`` besides the env name (robomimic passes
+    them back to it); they must be JSON-serializable (a catalog food name, not a FoodSpec).
+    """
+    kwargs = {k: v for k, v in env_kwargs.items() if k not in ("env_name", "seed")}
+    try:
+        json.dumps(kwargs)
+    except TypeError as e:
+        raise DatasetError(f"env_kwargs must be JSON-serializable to be stored in the dataset: {e}") from None
+    return dict(env_name=ENV_NAME, env_version=robosuite.__version__, type=ROBOSUITE_ENV_TYPE, env_kwargs=kwargs)
+
+
+def reset_to(env, model_xml: str, state: np.ndarray) -> None:
+    """robomimic's ``reset_to({"model": xml, "states": state})`` for a robosuite env: reload the XML, set the state."""
+    env.reset_from_xml_string(env.edit_model_xml(model_xml))
+    env.sim.reset()
+    env.sim.set_state_from_flattened(np.asarray(state))
+    env.sim.forward()
+
+
+def model_xml(env) -> str:
+    """The XML of the env's current model, built by its last (hard) reset.
+
+    Not ``env.sim.model.get_xml()``: MuJoCo saves the *last XML it parsed*, and a reset that settles a new pile
+    or measures grain inertias parses small models of its own, so that call can return one of those.
+    """
+    return env.edit_model_xml(env.model.get_xml())
+
+
+def restart_from_current_state(env) -> tuple[dict, str]:
+    """Restart the env, right after ``env.reset()``, from its own model and state the way playback will.
+
+    Stepping right after ``env.reset()`` and stepping after a playback's reset_to differ (the reload rebuilds the
+    simulation and its controller): starting the recording here makes open-loop replay reproduce every state.
+
+    Returns:
+        2-tuple: robosuite's observation at the restarted state, and the model XML to store with the episode
+    """
+    xml = model_xml(env)
+    reset_to(env, xml, env.sim.get_state().flatten())
+    return observe(env), xml
+
+
+def reset_to_demo(env, model_xml: str, state: np.ndarray, pile_variant: int | None = None, max_resets: int = 40):
+    """reset_to for a recorded demo, first drawing resets until the env's own pile matches the demo's.
+
+    ScoopGranular keeps per-grain sizes (volumes for the metrics, the spoon-load margin) from the pile variant of
+    its last hard reset, not from the XML it reloads; metrics and object observations of a replay are only right
+    when that variant is the demo's (``pile_variant`` attribute). Physics (the states) replays exactly either way.
+    """
+    if pile_variant is not None and getattr(env, "pile_variants", 1) > 1:
+        for _ in range(max_resets):
+            if env.pile_variant == pile_variant:
+                break
+            env.reset()
+        else:
+            raise DatasetError(f"the environment drew no pile variant {pile_variant} in {max_resets} resets")
+    reset_to(env, model_xml, state)
+    return observe(env)
+
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# Observations                                                                                                     #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+def robomimic_obs(env, raw: dict) -> dict:
+    """robosuite's observation dict as robomimic stores and reads it (as veragmil_suite.robomimic_compat does).
+
+    Every observable under its own name except the concatenated ``*-state`` vectors, with robosuite's
+    ``object-state`` as ``object``; camera images and depth made upright (robosuite renders them upside down under
+    its default "opengl" convention); empty observables (the spoon's gripper joints) left out. Depth stays
+    robosuite's normalized depth buffer, as policies see it in rollouts (metres:
+    ``robosuite.utils.camera_utils.get_real_depth_map``).
+    """
+    import robosuite.macros
+
+    flip = robosuite.macros.IMAGE_CONVENTION == "opengl"
+    out = {}
+    for key, value in raw.items():
+        if key.endswith("-state"):
+            if key == "object-state":
+                out["object"] = np.array(value, dtype=np.float64)
+            continue
+        value = np.array(value)
+        if value.size == 0:
+            continue
+        observable = env._observables.get(key)
+        if observable is not None and observable.modality == "image":
+            out[key] = np.ascontiguousarray(value[::-1]) if flip else value
+        else:
+            out[key] = value.astype(np.float64)
+    return out
+
+
+def observe(env) -> dict:
+    """robosuite's observation of the simulation's current state.
+
+    Not the observation ``env.step()`` returns: robosuite samples observables during the control period's
+    substeps, and lite physics leaves kinematics a substep behind, so that one lags the state reached (by about
+    half a control step here). Recording this one makes every observation a function of its recorded state:
+    what robomimic's dataset_states_to_obs extracts, and what replays re-render.
+    """
+    env.sim.forward()
+    return env._get_observations(force_update=True)
+
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# Recording one episode                                                                                            #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+@dataclass
+class Episode:
+    """One recorded episode, robomimic arrays plus what replays it."""
+
+    actions: np.ndarray
+    states: np.ndarray
+    rewards: np.ndarray
+    dones: np.ndarray
+    obs: dict
+    next_obs: dict
+    model_file: str
+    metrics: dict
+    attrs: dict = field(default_factory=dict)
+
+    @property
+    def num_samples(self) -> int:
+        return int(self.actions.shape[0])
+
+
+class EpisodeRecorder:
+    """
+    Steps a ScoopGranular env and keeps what the dataset needs: the state before each action, the action, reward,
+    observations before and after, and the final metrics.
+
+    Args:
+        env (ScoopGranular): the environment to record
+    """
+
+    def __init__(self, env):
+        self.env = env
+        self._clear()
+
+    def _clear(self):
+        self._states, self._actions, self._rewards, self._successes = [], [], [], []
+        self._obs, self._next_obs = [], []
+        self._info = {}
+        self.model_file = None
+        self.obs = None
+        self._converted = None
+
+    def reset(self) -> dict:
+        """Reset the env and restart it as playback will; returns robosuite's observation."""
+        self._clear()
+        self.env.reset()
+        raw, self.model_file = restart_from_current_state(self.env)
+        self.obs = raw
+        self._converted = robomimic_obs(self.env, raw)
+        return raw
+
+    def step(self, action: np.ndarray):
+        """env.step(action), recorded. Returns (obs, reward, done, info), obs that of the state reached (observe)."""
+        if self.obs is None:
+            raise RuntimeError("EpisodeRecorder.reset() must come before step()")
+        action = np.asarray(action, dtype=np.float64)
+        state = self.env.sim.get_state().flatten()
+        _, reward, done, info = self.env.step(action)
+        raw = observe(self.env)
+        after = robomimic_obs(self.env, raw)
+        self._states.append(state)
+        self._actions.append(action.copy())
+        self._rewards.append(float(reward))
+        self._successes.append(bool(info.get("success", False)))
+        self._obs.append(self._converted)
+        self._next_obs.append(after)
+        self._info = info
+        self.obs, self._converted = raw, after
+        return raw, reward, done, info
+
+    @property
+    def num_steps(self) -> int:
+        return len(self._actions)
+
+    def episode(self, attrs: dict | None = None) -> Episode:
+        """The episode so far, as arrays (robomimic's done_mode 2: done at success and at the end)."""
+        if not self._actions:
+            raise RuntimeError("no steps recorded")
+        dones = np.array(self._successes, dtype=np.int64)
+        dones[-1] = 1
+        return Episode(
+            actions=np.stack(self._actions),
+            states=np.stack(self._states),
+            rewards=np.array(self._rewards, dtype=np.float64),
+            dones=dones,
+            obs={k: np.stack([o[k] for o in self._obs]) for k in self._obs[0]},
+            next_obs={k: np.stack([o[k] for o in self._next_obs]) for k in self._next_obs[0]},
+            model_file=self.model_file,
+            metrics=episode_metrics(self._info),
+            attrs=dict(attrs or {}),
+        )
+
+
+def episode_metrics(info: dict) -> dict:
+    """The paper's per-episode metrics from the last step's info (success, spilled pieces and volume, time)."""
+    out = {}
+    for key in METRIC_KEYS:
+        value = info.get(key, "" if key == "physics_error" else 0)
+        if isinstance(value, (bool, np.bool_)):
+            out[key] = bool(value)
+        elif isinstance(value, (int, np.integer)):
+            out[key] = int(value)
+        elif isinstance(value, (float, np.floating)):
+            out[key] = float(value)
+        else:
+            out[key] = str(value)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# The file                                                                                                         #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+def demo_names(f: h5py.File) -> list[str]:
+    """Finished demos of an open dataset, in numeric order."""
+    names = [n for n in f["data"].keys() if re.fullmatch(DEMO_PREFIX + r"\d+", n)]
+    return sorted(names, key=lambda n: int(n[len(DEMO_PREFIX) :]))
+
+
+def open_dataset(path: str | Path, mode: str = "r") -> h5py.File:
+    """Open a ScoopGranular dataset, with a clear error for anything else.
+
+    Raises:
+        DatasetError: [missing file, not HDF5 or corrupt, not a robomimic dataset, another env, a damaged demo]
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise DatasetError(f"{path}: no such file")
+    try:
+        f = h5py.File(path, mode)
+    except OSError as e:
+        raise DatasetError(
+            f"{path} cannot be read as HDF5: it is corrupt, truncated, or not an HDF5 file ({_first_line(e)})"
+        ) from None
+    try:
+        check_schema(f, path)
+    except BaseException:
+        f.close()
+        raise
+    return f
+
+
+def check_schema(f: h5py.File, path: str | Path = "") -> dict:
+    """Check that an open file is a ScoopGranular robomimic dataset; returns its env metadata."""
+    where = str(path or f.filename)
+    try:
+        data = f.get("data")
+        if not isinstance(data, h5py.Group) or "env_args" not in data.attrs:
+            raise DatasetError(
+                f"{where} is an HDF5 file but not a robomimic dataset (no 'data' group with an 'env_args' attribute)"
+            )
+        try:
+            meta = json.loads(data.attrs["env_args"])
+        except (TypeError, ValueError):
+            raise DatasetError(f"{where}: data/env_args is not JSON") from None
+        if meta.get("env_name") != ENV_NAME:
+            raise DatasetError(
+                f"{where} holds demonstrations of {meta.get('env_name')!r}, not {ENV_NAME}: "
+                "not a veragmil_suite dataset"
+            )
+        for name in demo_names(f):
+            _check_demo(data[name], f"{where}:data/{name}")
+    except (OSError, KeyError, RuntimeError) as e:
+        raise DatasetError(f"{where} is damaged: {_first_line(e)}") from None
+    return meta
+
+
+def _check_demo(g, where: str) -> None:
+    for key in ("actions", "states", "rewards", "dones"):
+        if not isinstance(g.get(key), h5py.Dataset):
+            raise DatasetError(f"{where} is incomplete: no {key!r} dataset")
+    n = g["actions"].shape[0]
+    if "num_samples" not in g.attrs or int(g.attrs["num_samples"]) != n or "model_file" not in g.attrs:
+        raise DatasetError(f"{where} is incomplete: num_samples or model_file missing or wrong")
+    for key in ("states", "rewards", "dones"):
+        if g[key].shape[0] != n:
+            raise DatasetError(f"{where}: {key} has {g[key].shape[0]} steps, actions {n}")
+    for group in ("obs", "next_obs"):
+        for k, d in g.get(group, {}).items():
+            if d.shape[0] != n:
+                raise DatasetError(f"{where}: {group}/{k} has {d.shape[0]} steps, actions {n}")
+
+
+def provenance(device: str, operator: str, food: str, robot: str, **extra) -> dict:
+    """Who and what made the demonstrations: device, operator, food, robot, software versions, date."""
+    out = dict(
+        device=device,
+        operator=operator,
+        food=food,
+        robot=robot,
+        mujoco_version=mujoco.__version__,
+        robosuite_version=robosuite.__version__,
+        robomimic_version=_version("robomimic"),
+        veragmil_suite_version=veragmil_suite.__version__,
+        veragmil_suite_commit=_git_commit(),
+        numpy_version=np.__version__,
+        python_version=platform.python_version(),
+        date=datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
+    )
+    out.update(extra)
+    return out
+
+
+class DemoWriter:
+    """
+    Writes episodes to a robomimic-schema HDF5 file, each one flushed and the file closed when it is written.
+
+    Args:
+        path (str or Path): the file; created if absent, else appended to (numbering continues)
+        env_meta (dict): robomimic env metadata of the env recorded (:func:`env_meta`)
+        provenance (dict): attributes stored with the file and every demo (:func:`provenance`): device, operator,
+            food, robot, versions, date, ...
+        valid_ratio (float): fraction of demos in mask/valid (the split is redone at every write)
+
+    Raises:
+        DatasetError: [the file is not a ScoopGranular dataset of ours, is corrupt, or its env differs]
+    """
+
+    def __init__(self, path: str | Path, env_meta: dict, provenance: dict, valid_ratio: float = 0.1):
+        if not 0 <= valid_ratio < 1:
+            raise ValueError(f"valid_ratio must lie in [0, 1), got {valid_ratio!r}")
+        self.path = Path(path)
+        self.env_meta = env_meta
+        self.provenance = dict(provenance)
+        self.valid_ratio = valid_ratio
+        if self.path.exists():
+            with open_dataset(self.path, "a") as f:
+                self._check_appendable(f)
+                for name in list(f["data"].keys()):
+                    if name.startswith(_PENDING_PREFIX):
+                        del f["data"][name]  # an episode whose writing was interrupted
+                self.next_index = self._next_index(f)
+        else:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            with h5py.File(self.path, "w") as f:
+                data = f.create_group("data")
+                data.attrs["env_args"] = json.dumps(env_meta, indent=4)
+                data.attrs["total"] = 0
+                data.attrs["writer"] = WRITER
+                data.attrs["format_version"] = FORMAT_VERSION
+                for key, value in self.provenance.items():
+                    data.attrs[key] = _attr(value)
+                data.attrs["attempts"] = "[]"
+                refresh_summary(f, valid_ratio)
+            self.next_index = 0
+
+    def _check_appendable(self, f: h5py.File) -> None:
+        data = f["data"]
+        if data.attrs.get("writer") != WRITER:
+            raise DatasetError(
+                f"{self.path} is a robomimic dataset not written by veragmil_suite: refusing to append to it"
+            )
+        theirs = json.loads(data.attrs["env_args"])["env_kwargs"]
+        ours = self.env_meta["env_kwargs"]
+        differ = [k for k in COMPATIBLE_KWARGS if _canonical(theirs.get(k)) != _canonical(ours.get(k))]
+        if differ:
+            raise DatasetError(
+                f"{self.path} was recorded with other {', '.join(differ)} "
+                f"({', '.join(f'{k}={theirs.get(k)!r}' for k in differ if k != 'controller_configs')}): "
+                "write to a new file instead"
+            )
+
+    @staticmethod
+    def _next_index(f: h5py.File) -> int:
+        names = demo_names(f)
+        return int(names[-1][len(DEMO_PREFIX) :]) + 1 if names else 0
+
+    @property
+    def num_demos(self) -> int:
+        with open_dataset(self.path) as f:
+            return len(demo_names(f))
+
+    def write(self, episode: Episode) -> str:
+        """Append one episode as the next demo_N, flush and close the file; returns the demo's name."""
+        name = f"{DEMO_PREFIX}{self.next_index}"
+        with _deferred_sigint(), h5py.File(self.path, "a") as f:
+            data = f["data"]
+            first = demo_names(f)[:1]
+            if first:
+                self._check_same_obs(data[first[0]], episode)
+            pending = _PENDING_PREFIX + name
+            if pending in data:
+                del data[pending]
+            g = data.create_group(pending)
+            g.create_dataset("actions", data=episode.actions)
+            g.create_dataset("states", data=episode.states, compression="gzip", compression_opts=4, shuffle=True)
+            g.create_dataset("rewards", data=episode.rewards)
+            g.create_dataset("dones", data=episode.dones)
+            for group_name, obs in (("obs", episode.obs), ("next_obs", episode.next_obs)):
+                og = g.create_group(group_name)
+                for key, value in obs.items():
+                    options = IMAGE_COMPRESSION if value.ndim >= 3 else {}
+                    og.create_dataset(key, data=value, **options)
+            g.attrs["model_file"] = episode.model_file
+            g.attrs["env_args"] = json.dumps(self.env_meta)
+            for key, value in {**self.provenance, **episode.attrs, **episode.metrics}.items():
+                g.attrs[key] = _attr(value)
+            g.attrs["num_samples"] = episode.num_samples
+            f.flush()
+            data.move(pending, name)  # the demo exists under its real name only once complete
+            self._log(data, dict(demo=name, kept=True, **episode.attrs, **episode.metrics))
+            self._update_totals(f)
+            f.flush()
+        self.next_index += 1
+        return name
+
+    def log_discarded(self, metrics: dict, attrs: dict | None = None) -> None:
+        """Store the metrics of an episode the operator discarded (success rates must count every attempt)."""
+        with _deferred_sigint(), h5py.File(self.path, "a") as f:
+            self._log(f["data"], dict(demo=None, kept=False, **(attrs or {}), **metrics))
+
+    def _log(self, data: h5py.Group, entry: dict) -> None:
+        attempts = json.loads(data.attrs.get("attempts", "[]"))
+        attempts.append({k: _jsonable(v) for k, v in {**_short_provenance(self.provenance), **entry}.items()})
+        data.attrs["attempts"] = json.dumps(attempts)
+
+    def _check_same_obs(self, first: h5py.Group, episode: Episode) -> None:
+        theirs = {k: first["obs"][k].shape[1:] for k in first["obs"]}
+        ours = {k: v.shape[1:] for k, v in episode.obs.items()}
+        if theirs != ours:
+            raise DatasetError(
+                f"{self.path}: this episode's observations differ from the file's "
+                f"(file: {sorted(theirs.items())}; episode: {sorted(ours.items())})"
+            )
+
+    def _update_totals(self, f: h5py.File) -> None:
+        refresh_summary(f, self.valid_ratio)
+
+
+def refresh_summary(f: h5py.File, valid_ratio: float = 0.1, seed: int = 0) -> None:
+    """Recompute what summarizes the demos: ``total``, the foods, devices and operators seen, and the masks."""
+    data = f["data"]
+    names = demo_names(f)
+    data.attrs["total"] = int(sum(int(data[n].attrs["num_samples"]) for n in names))
+    for key in ("food", "device", "operator"):
+        values = sorted({str(data[n].attrs.get(key, "")) for n in names} - {""})
+        data.attrs[key + "s"] = json.dumps(values)
+    write_masks(f, valid_ratio, seed)
+
+
+def write_masks(f: h5py.File, valid_ratio: float = 0.1, seed: int = 0) -> dict[str, list[str]]:
+    """(Re)write robomimic's filter keys: train/valid split, one per food, and the successful demos."""
+    names = demo_names(f)
+    masks = dict(zip(("train", "valid"), split_demos(names, valid_ratio, seed)))
+    data = f["data"]
+    for name in names:
+        food = str(data[name].attrs.get("food", ""))
+        if food:
+            masks.setdefault(food, []).append(name)
+        if bool(data[name].attrs.get("success", False)):
+            masks.setdefault("success", []).append(name)
+    masks.setdefault("success", [])
+    if "mask" in f:
+        del f["mask"]
+    mask = f.create_group("mask")
+    for key, members in masks.items():
+        mask.create_dataset(key, data=np.array(members, dtype="S"))
+    return masks
+
+
+def split_demos(names: list[str], valid_ratio: float, seed: int = 0) -> tuple[list[str], list[str]]:
+    """Train and valid demo names: a seeded shuffle, at least one valid demo once there are two."""
+    n = len(names)
+    n_valid = int(round(n * valid_ratio))
+    if valid_ratio > 0 and n >= 2:
+        n_valid = min(max(n_valid, 1), n - 1)
+    order = np.random.default_rng(seed).permutation(n)
+    valid = set(order[:n_valid].tolist())
+    return [x for i, x in enumerate(names) if i not in valid], [x for i, x in enumerate(names) if i in valid]
+
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# Helpers                                                                                                          #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+@contextlib.contextmanager
+def _deferred_sigint():
+    """Hold Ctrl-C while an episode is written, so an interrupt cannot cut a write in half."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught = []
+    previous = signal.signal(signal.SIGINT, lambda *args: caught.append(args))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        if caught and callable(previous):
+            previous(*caught[0])
+        elif caught and previous != signal.SIG_IGN:
+            raise KeyboardInterrupt
+
+
+def _attr(value):
+    if isinstance(value, (dict, list, tuple)):
+        return json.dumps(value)
+    if value is None:
+        return ""
+    return value
+
+
+def _jsonable(value):
+    if isinstance(value, (np.integer,)):
+        return int(value)
+    if isinstance(value, (np.floating,)):
+        return float(value)
+    if isinstance(value, np.bool_):
+        return bool(value)
+    return value
+
+
+def _short_provenance(p: dict) -> dict:
+    return {k: p[k] for k in ("device", "operator", "food") if k in p}
+
+
+def _canonical(value) -> str:
+    return json.dumps(value, sort_keys=True)
+
+
+def _first_line(e: BaseException) -> str:
+    text = str(e).strip()
+    return text.splitlines()[0] if text else type(e).__name__
+
+
+def _version(module: str) -> str:
+    try:
+        from importlib.metadata import version
+
+        return version(module)
+    except Exception:
+        return ""
+
+
+def _git_commit() -> str:
+    try:
+        root = Path(veragmil_suite.__file__).resolve().parent.parent
+        out = subprocess.run(
+            ["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True, text=True, timeout=5
+        )
+        return out.stdout.strip() if out.returncode == 0 else ""
+    except (OSError, subprocess.SubprocessError):
+        return ""

@@ -1,0 +1,383 @@
+"""
+Collect ScoopGranular demonstrations straight into a robomimic HDF5 file.
+
+Devices: ``keyboard`` and ``spacemouse`` (robosuite's own device classes), ``vr`` (a WebXR headset,
+veragmil_suite.devices.VRDevice) and ``scripted`` (the scripted expert, veragmil_suite.expert: no human, no
+display, no prompt). After each episode its metrics (success, spilled pieces and volume, completion time) are
+printed and stored, and the operator keeps or discards it; discarded attempts are still logged, so a human
+operator's success rate counts every attempt (the paper's "Human" column).
+
+Each kept episode is flushed to the file when it ends: stopping the script (Ctrl-C, or killing it) loses at most
+the episode in progress. Giving an existing file appends to it.
+
+Example:
+    veragmil-collect --device scripted --food rice --episodes 2 --output out.hdf5
+    veragmil-collect --device keyboard --food pasta --episodes 30 --output pasta_keyboard.hdf5 --operator alice
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+import numpy as np
+
+DEVICES = ("keyboard", "spacemouse", "vr", "scripted")
+KEEP_POLICIES = ("ask", "all", "success")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from veragmil_suite.expert import PROFILES
+    from veragmil_suite.foods import FOODS
+
+    p = argparse.ArgumentParser(
+        prog="veragmil-collect",
+        description=__doc__.split("\n\n")[0].strip() + " Devices: keyboard, spacemouse, vr, scripted.",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    p.add_argument("--device", choices=DEVICES, default="keyboard", help="who drives the spoon")
+    p.add_argument("--food", choices=sorted(FOODS), default="rice")
+    p.add_argument("--episodes", type=int, default=1, help="demonstrations to save")
+    p.add_argument("--output", required=True, help="HDF5 file (appended to when it exists)")
+    p.add_argument("--robot", default="XArm7")
+    p.add_argument("--controller", choices=("OSC_POSE", "IK_POSE"), default="OSC_POSE", help="arm controller")
+    p.add_argument("--control-freq", type=int, default=20, help="control rate, Hz (the paper's VR runs at 60)")
+    p.add_argument("--horizon", type=int, default=400, help="longest episode, control steps")
+    p.add_argument("--n-grains", type=int, default=None, help="grains in the bowl (default: the food's own)")
+    p.add_argument(
+        "--cameras", nargs="*", default=["overhead"], help="cameras recorded as <name>_image; none: low-dim only"
+    )
+    p.add_argument("--camera-size", type=int, nargs="+", default=[84], metavar="PX", help="height [width]")
+    p.add_argument("--depth", action="store_true", help="also record <camera>_depth (metres)")
+    p.add_argument("--seed", type=int, default=0, help="seeds the environment and the scripted expert")
+    p.add_argument(
+        "--keep",
+        choices=KEEP_POLICIES,
+        default=None,
+        help="which episodes to save: ask the operator, all, or the successful ones "
+        "(default: success for scripted, ask otherwise)",
+    )
+    p.add_argument(
+        "--max-attempts", type=int, default=None, help="stop after this many episodes (default: 3x --episodes + 2 "
+        "for scripted, unlimited otherwise)"
+    )  # fmt: skip
+    p.add_argument("--success-hold", type=float, default=1.0, help="end an episode once success held this long, s")
+    p.add_argument("--operator", default=None, help="who demonstrates (stored with every demo)")
+    p.add_argument("--profile", choices=sorted(PROFILES), default="expert", help="scripted operator profile")
+    p.add_argument("--valid-ratio", type=float, default=0.1, help="fraction of demos in mask/valid")
+    p.add_argument(
+        "--render", choices=("auto", "on", "off"), default="auto", help="live window (auto: for humans with a display)"
+    )
+    p.add_argument("--pos-sensitivity", type=float, default=1.0, help="keyboard / spacemouse / vr translation scale")
+    p.add_argument("--rot-sensitivity", type=float, default=1.0, help="keyboard / spacemouse / vr rotation scale")
+    p.add_argument("--vr-host", default="127.0.0.1", help="VR server address (0.0.0.0 for a Wi-Fi headset)")
+    p.add_argument("--vr-port", type=int, default=8765)
+    p.add_argument("--quiet", action="store_true", help="print only the per-episode lines and the summary")
+    return p
+
+
+def env_kwargs_from_args(args) -> dict:
+    """robosuite.make keyword arguments (besides the env name) for the command line, JSON-serializable."""
+    from veragmil_suite.controllers import load_scoop_controller_config
+
+    height, width = (args.camera_size * 2)[:2]
+    kwargs = dict(
+        robots=args.robot,
+        food=args.food,
+        controller_configs=load_scoop_controller_config(args.controller, robot=args.robot),
+        control_freq=args.control_freq,
+        horizon=args.horizon,
+        ignore_done=False,
+        reward_shaping=False,
+        use_object_obs=True,
+        use_camera_obs=bool(args.cameras),
+        has_offscreen_renderer=bool(args.cameras),
+        camera_names=list(args.cameras) if args.cameras else "overhead",
+        camera_heights=height,
+        camera_widths=width,
+        camera_depths=bool(args.depth),
+    )
+    if args.n_grains is not None:
+        kwargs["n_grains"] = args.n_grains
+    return kwargs
+
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# Operators: who produces the actions                                                                              #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+class ScriptedOperator:
+    """The scripted expert as an operator: never asks, never needs a display."""
+
+    source = "scripted"
+
+    def __init__(self, env, profile: str, seed: int):
+        from veragmil_suite.expert import ScriptedScooper
+
+        self.expert = ScriptedScooper(env, profile, seed=seed)
+        self.name = f"scripted-{self.expert.profile.name}"
+        self.command = None
+
+    def begin(self) -> None:
+        self.expert.reset()
+        self.command = None
+
+    def action(self, obs: dict) -> np.ndarray | None:
+        if self.expert.done:
+            return None
+        return self.expert.act(obs)
+
+    def close(self) -> None:
+        pass
+
+
+class TeleopOperator:
+    """A robosuite Device (keyboard, SpaceMouse, VR) as an operator."""
+
+    source = "human"
+
+    def __init__(self, env, device, name: str):
+        self.env = env
+        self.device = device
+        self.name = name
+        self.command = None
+
+    def begin(self) -> None:
+        self.command = None
+        self.device.start_control()
+        if hasattr(self.device, "recording"):
+            self.device.recording = True
+
+    def action(self, obs: dict) -> np.ndarray | None:
+        action_dict = self.device.input2action()
+        if action_dict is None:
+            self.command = getattr(self.device, "episode_command", None) or "reset"
+            return None
+        robot = self.env.robots[0]
+        arm = robot.arms[0]
+        controller = robot.part_controllers[arm]
+        key = f"{arm}_delta" if getattr(controller, "input_type", "delta") == "delta" else f"{arm}_abs"
+        return robot.create_action_vector({arm: action_dict[key]})
+
+    def wait_for_verdict(self) -> str | None:
+        """VR: after an episode ended by itself, wait for the operator's keep or discard button."""
+        if not hasattr(self.device, "request_episode_end"):
+            return None
+        self.device.status_message = "press keep or discard"
+        self.device.start_control()
+        while self.device.input2action() is not None:
+            time.sleep(0.02)
+        return self.device.episode_command
+
+    def end(self) -> None:
+        if hasattr(self.device, "recording"):
+            self.device.recording = False
+
+    def close(self) -> None:
+        if hasattr(self.device, "close"):
+            self.device.close()
+
+
+def make_operator(args, env):
+    """The operator for ``--device``; a clear SystemExit when its hardware or display is missing."""
+    if args.device == "scripted":
+        if args.controller != "OSC_POSE":
+            raise SystemExit("veragmil-collect: the scripted expert drives OSC_POSE; drop --controller IK_POSE")
+        return ScriptedOperator(env, args.profile, args.seed)
+    if args.device == "keyboard":
+        if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+            raise SystemExit("veragmil-collect: keyboard teleoperation needs a display (no DISPLAY is set)")
+        from robosuite.devices import Keyboard
+
+        device = Keyboard(env=env, pos_sensitivity=args.pos_sensitivity, rot_sensitivity=args.rot_sensitivity)
+    elif args.device == "spacemouse":
+        from robosuite.devices import SpaceMouse
+
+        try:
+            device = SpaceMouse(env=env, pos_sensitivity=args.pos_sensitivity, rot_sensitivity=args.rot_sensitivity)
+        except (OSError, ImportError) as e:
+            raise SystemExit(f"veragmil-collect: no SpaceMouse found through hidapi ({e})") from None
+    else:
+        from veragmil_suite.devices import VRDevice
+
+        device = VRDevice(
+            env,
+            host=args.vr_host,
+            port=args.vr_port,
+            pos_sensitivity=args.pos_sensitivity,
+            rot_sensitivity=args.rot_sensitivity,
+            verbose=not args.quiet,
+        )
+    return TeleopOperator(env, device, args.operator or "")
+
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# The collection loop                                                                                              #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+def run_episode(env, recorder, operator, success_hold_s: float, render: bool, realtime: bool) -> str:
+    """Record one episode; returns why it ended: "success", "horizon", "operator", "gave up" or "physics"."""
+    obs = recorder.reset()
+    operator.begin()
+    hold_steps = max(1, int(round(success_hold_s * env.control_freq))) if success_hold_s > 0 else None
+    streak = 0
+    while True:
+        start = time.perf_counter()
+        action = operator.action(obs)
+        if action is None:
+            return "operator" if operator.source == "human" else "gave up"
+        obs, _, done, info = recorder.step(action)
+        if render:
+            env.render()
+        streak = streak + 1 if info.get("success") else 0
+        if info.get("physics_error"):
+            return "physics"
+        if hold_steps is not None and streak >= hold_steps:
+            return "success"
+        if done:
+            return "horizon"
+        if realtime:
+            time.sleep(max(0.0, env.control_timestep - (time.perf_counter() - start)))
+
+
+def ask_keep(prompt: str) -> bool:
+    while True:
+        try:
+            answer = input(prompt).strip().lower()
+        except EOFError:
+            return False
+        if answer in ("", "y", "yes"):
+            return True
+        if answer in ("n", "no"):
+            return False
+
+
+def episode_line(n: int, metrics: dict, steps: int, reason: str) -> str:
+    m = metrics
+    line = (
+        f"episode {n}: {'SUCCESS' if m['success'] else 'failure'} ({reason}), {steps} steps; "
+        f"in spoon {m['grains_in_spoon']} ({m['spoon_volume_cm3']:.2f} cm3); "
+        f"spilled {m['grains_spilled']} pieces, {m['spilled_volume_cm3']:.2f} cm3 "
+        f"({100 * m['spill_fraction']:.1f}% of scooped); time {m['completion_time_s']:.2f} s"
+    )
+    return line + (f"; physics: {m['physics_error']}" if m["physics_error"] else "")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """veragmil-collect: record demonstrations (see --help)."""
+    args = build_parser().parse_args(argv)
+    if args.episodes < 1:
+        raise SystemExit("veragmil-collect: --episodes must be at least 1")
+    if not os.environ.get("DISPLAY"):
+        os.environ.setdefault("PYNPUT_BACKEND", "dummy")  # robosuite.devices imports pynput, which wants X
+    if args.cameras:
+        os.environ.setdefault("MUJOCO_GL", "osmesa")
+
+    import robosuite
+
+    import veragmil_suite  # noqa: F401  (registers ScoopGranular)
+    from veragmil_suite import recording
+
+    has_display = bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+    render = args.render == "on" or (args.render == "auto" and args.device != "scripted" and has_display)
+    keep_policy = args.keep or ("success" if args.device == "scripted" else "ask")
+    max_attempts = args.max_attempts or (3 * args.episodes + 2 if args.device == "scripted" else None)
+    source = "scripted" if args.device == "scripted" else "human"
+    operator_name = args.operator or (f"scripted-{args.profile}" if source == "scripted" else "unspecified")
+
+    env_kwargs = env_kwargs_from_args(args)
+    try:
+        writer = recording.DemoWriter(
+            args.output,
+            recording.env_meta(env_kwargs),
+            recording.provenance(
+                device=args.device,
+                operator=operator_name,
+                food=args.food,
+                robot=args.robot,
+                source=source,
+                controller=args.controller,
+                control_freq=args.control_freq,
+                env_seed=args.seed,
+                profile=args.profile if source == "scripted" else "",
+            ),
+            valid_ratio=args.valid_ratio,
+        )
+    except recording.DatasetError as e:
+        print(f"veragmil-collect: {e}", file=sys.stderr)
+        return 2
+
+    env = robosuite.make(
+        "ScoopGranular",
+        **env_kwargs,
+        has_renderer=render,
+        render_camera=args.cameras[0] if args.cameras else "overhead",
+        seed=args.seed,
+    )
+    operator = make_operator(args, env)
+    recorder = recording.EpisodeRecorder(env)
+    kept, attempts, results = 0, 0, []
+    if not args.quiet:
+        print(f"recording {args.food} with {args.device} ({operator_name}) into {args.output}; keep: {keep_policy}")
+    try:
+        while kept < args.episodes and (max_attempts is None or attempts < max_attempts):
+            reason = run_episode(env, recorder, operator, args.success_hold, render, realtime=source == "human")
+            attempts += 1
+            if recorder.num_steps == 0:
+                continue
+            episode = recorder.episode(
+                attrs=dict(attempt=attempts, end_reason=reason, pile_variant=int(env.pile_variant))
+            )
+            metrics = episode.metrics
+            print(episode_line(attempts, metrics, episode.num_samples, reason), flush=True)
+            command = operator.command
+            if keep_policy == "ask" and command not in ("keep", "discard", "reset"):
+                verdict = operator.wait_for_verdict() if isinstance(operator, TeleopOperator) else None
+                command = verdict or ("keep" if ask_keep("keep this episode? [Y/n] ") else "discard")
+            keep = {
+                "all": True,
+                "success": bool(metrics["success"]),
+                "ask": command == "keep",
+            }[keep_policy]
+            if isinstance(operator, TeleopOperator):
+                operator.end()
+            results.append(metrics)
+            if keep:
+                name = writer.write(episode)
+                kept += 1
+                print(f"  saved as {name} ({kept}/{args.episodes})", flush=True)
+            else:
+                writer.log_discarded(metrics, attrs=dict(attempt=attempts, end_reason=reason))
+                print("  discarded", flush=True)
+    except KeyboardInterrupt:
+        print(f"\ninterrupted: the episode in progress is dropped; {kept} saved episodes are in {args.output}")
+    finally:
+        operator.close()
+        env.close()
+    _print_summary(results, kept, args.output)
+    if kept < args.episodes:
+        print(f"veragmil-collect: saved {kept} of {args.episodes} requested episodes", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _print_summary(results: list[dict], kept: int, path: str) -> None:
+    if not results:
+        return
+    success = np.mean([r["success"] for r in results])
+    spill = np.mean([r["grains_spilled"] for r in results])
+    spill_vol = np.mean([r["spilled_volume_cm3"] for r in results])
+    times = [r["completion_time_s"] for r in results if r["success"]]
+    print(
+        f"{len(results)} attempts, {kept} saved to {path}: success {100 * success:.0f}%, "
+        f"spilled {spill:.1f} pieces ({spill_vol:.2f} cm3) on average"
+        + (f", completion {np.mean(times):.2f} s on success" if times else "")
+    )
+
+
+if __name__ == "__main__":
+    sys.exit(main())

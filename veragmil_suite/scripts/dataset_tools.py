@@ -1,0 +1,666 @@
+"""
+Tools for ScoopGranular demonstration files (robomimic's HDF5 schema, see veragmil_suite.recording):
+
+    veragmil-dataset-info   demos, lengths, per-food counts, success rate, spillage, obs keys and shapes
+    veragmil-merge          merge several files into one (demos renumbered, provenance kept per demo)
+    veragmil-split          train/valid split with a ratio (robomimic's mask/train and mask/valid)
+    veragmil-replay         replay demos to an mp4 from their states (or their actions, checking the states)
+    veragmil-render-obs     re-render camera observations from the states, for other cameras or sizes
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from collections import Counter
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from veragmil_suite.recording import (
+    COMPATIBLE_KWARGS,
+    DatasetError,
+    demo_names,
+    observe,
+    open_dataset,
+    refresh_summary,
+    reset_to_demo,
+    robomimic_obs,
+    split_demos,
+    write_masks,
+)
+
+
+def _fail(tool: str, error: Exception) -> int:
+    print(f"{tool}: {error}", file=sys.stderr)
+    return 2
+
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# info                                                                                                             #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+def dataset_summary(path: str | Path) -> dict:
+    """What a dataset holds: demos, lengths, foods, devices, success, spillage, obs keys, filter keys, provenance."""
+    with open_dataset(path) as f:
+        data = f["data"]
+        meta = json.loads(data.attrs["env_args"])
+        kwargs = meta.get("env_kwargs", {})
+        names = demo_names(f)
+        control_freq = float(kwargs.get("control_freq", 20))
+        lengths = np.array([int(data[n].attrs["num_samples"]) for n in names], dtype=int)
+        demos = []
+        for n in names:
+            a = data[n].attrs
+            demos.append(
+                dict(
+                    name=n,
+                    steps=int(a["num_samples"]),
+                    food=str(a.get("food", kwargs.get("food", ""))),
+                    device=str(a.get("device", "")),
+                    operator=str(a.get("operator", "")),
+                    success=bool(a.get("success", False)) if "success" in a else None,
+                    grains_spilled=int(a.get("grains_spilled", 0)),
+                    spilled_volume_cm3=float(a.get("spilled_volume_cm3", 0.0)),
+                    spill_fraction=float(a.get("spill_fraction", 0.0)),
+                    completion_time_s=float(a.get("completion_time_s", 0.0)),
+                )
+            )
+        obs_keys = {}
+        if names:
+            first = data[names[0]]
+            obs_keys = {k: (list(d.shape[1:]), str(d.dtype)) for k, d in first.get("obs", {}).items()}
+        masks = {k: len(f["mask"][k]) for k in f["mask"]} if "mask" in f else {}
+        attempts = json.loads(data.attrs.get("attempts", "[]"))
+        provenance = {k: _plain(data.attrs[k]) for k in data.attrs if k not in _SUMMARY_ATTRS}
+    known = [d for d in demos if d["success"] is not None]
+    success_times = [d["completion_time_s"] for d in known if d["success"]]
+    per_food = {}
+    for food in sorted({d["food"] for d in demos}):
+        rows = [d for d in demos if d["food"] == food]
+        ok = [d for d in rows if d["success"]]
+        per_food[food] = dict(
+            demos=len(rows),
+            success=len(ok),
+            mean_spilled=float(np.mean([d["grains_spilled"] for d in rows])),
+            mean_spilled_cm3=float(np.mean([d["spilled_volume_cm3"] for d in rows])),
+            mean_time_s=float(np.mean([d["completion_time_s"] for d in ok])) if ok else None,
+        )
+    return dict(
+        path=str(path),
+        env=dict(
+            env_name=meta.get("env_name"),
+            robot=kwargs.get("robots"),
+            controller=_controller_name(kwargs.get("controller_configs")),
+            control_freq=control_freq,
+            horizon=kwargs.get("horizon"),
+            cameras=kwargs.get("camera_names") if kwargs.get("use_camera_obs") else [],
+        ),
+        demos=len(names),
+        transitions=int(lengths.sum()),
+        length_steps=dict(
+            mean=float(lengths.mean()) if len(lengths) else 0.0,
+            min=int(lengths.min()) if len(lengths) else 0,
+            max=int(lengths.max()) if len(lengths) else 0,
+        ),
+        duration_s=float(lengths.sum() / control_freq),
+        foods=dict(Counter(d["food"] for d in demos)),
+        devices=dict(Counter(d["device"] for d in demos)),
+        operators=dict(Counter(d["operator"] for d in demos)),
+        success_rate=(sum(d["success"] for d in known) / len(known)) if known else None,
+        attempts=len(attempts),
+        attempt_success_rate=(sum(bool(a.get("success")) for a in attempts) / len(attempts)) if attempts else None,
+        mean_grains_spilled=float(np.mean([d["grains_spilled"] for d in demos])) if demos else 0.0,
+        mean_spilled_cm3=float(np.mean([d["spilled_volume_cm3"] for d in demos])) if demos else 0.0,
+        mean_completion_time_s=float(np.mean(success_times)) if success_times else None,
+        per_food=per_food,
+        obs_keys=obs_keys,
+        filter_keys=masks,
+        provenance=provenance,
+        demo_list=demos,
+    )
+
+
+_SUMMARY_ATTRS = ("env_args", "attempts", "total", "foods", "devices", "operators", "merged_from")
+
+
+def _controller_name(config) -> str:
+    if not isinstance(config, dict):
+        return str(config)
+    part = config.get("body_parts", {}).get("right", config)
+    return str(part.get("type", config.get("type", "")))
+
+
+def _plain(value):
+    if isinstance(value, bytes):
+        return value.decode()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def _pct(x) -> str:
+    return "n/a" if x is None else f"{100 * x:.0f}%"
+
+
+def format_summary(s: dict, verbose: bool = False) -> str:
+    env = s["env"]
+    length = s["length_steps"]
+    hz = env["control_freq"]
+    lines = [
+        f"{s['path']}: {s['demos']} demos, {s['transitions']} transitions ({s['duration_s']:.1f} s)",
+        f"  env: {env['env_name']}, robot {env['robot']}, controller {env['controller']}, {hz:g} Hz, "
+        f"horizon {env['horizon']}, cameras {env['cameras'] or 'none'}",
+        f"  length: mean {length['mean']:.1f} steps ({length['mean'] / hz:.2f} s), min {length['min']}, "
+        f"max {length['max']}",
+        "  foods: " + ", ".join(f"{k} {v}" for k, v in sorted(s["foods"].items())),
+        "  devices: " + ", ".join(f"{k} {v}" for k, v in sorted(s["devices"].items()))
+        + "; operators: " + ", ".join(f"{k or '?'} {v}" for k, v in sorted(s["operators"].items())),
+        f"  success: {_pct(s['success_rate'])} of demos; {s['attempts']} attempts logged, "
+        f"{_pct(s['attempt_success_rate'])} successful (discarded ones included)",
+        f"  spilled: {s['mean_grains_spilled']:.2f} pieces, {s['mean_spilled_cm3']:.3f} cm3 per demo; completion "
+        + ("n/a" if s["mean_completion_time_s"] is None else f"{s['mean_completion_time_s']:.2f} s on success"),
+        "  per food:   demos  success  spilled(pieces)  spilled(cm3)  time(s)",
+    ]  # fmt: skip
+    for food, r in s["per_food"].items():
+        t = "n/a" if r["mean_time_s"] is None else f"{r['mean_time_s']:.2f}"
+        lines.append(
+            f"    {food:<10}{r['demos']:>5}  {r['success']:>4}/{r['demos']:<3} {r['mean_spilled']:>10.2f}"
+            f"  {r['mean_spilled_cm3']:>12.3f}  {t:>7}"
+        )
+    lines.append("  filter keys: " + ", ".join(f"{k} {v}" for k, v in sorted(s["filter_keys"].items())))
+    lines.append("  obs keys (per-step shape, dtype):")
+    for key, (shape, dtype) in sorted(s["obs_keys"].items()):
+        lines.append(f"    {key:<28}{str(tuple(shape)):<16}{dtype}")
+    p = s["provenance"]
+    versions = ", ".join(
+        f"{k.replace('_version', '')} {p[k]}" for k in sorted(p) if k.endswith("_version") and p[k] != ""
+    )
+    lines.append(f"  made by: {p.get('writer', 'unknown writer')}; {versions}; {p.get('date', '')}")
+    if verbose:
+        lines.append("  demos:")
+        for d in s["demo_list"]:
+            ok = "?" if d["success"] is None else ("success" if d["success"] else "failure")
+            lines.append(
+                f"    {d['name']:<10}{d['steps']:>5} steps  {d['food']:<10}{d['device']:<11}{ok:<8}"
+                f" spilled {d['grains_spilled']} ({d['spilled_volume_cm3']:.3f} cm3)"
+                f"  time {d['completion_time_s']:.2f} s"
+            )
+    return "\n".join(lines)
+
+
+def info_main(argv: list[str] | None = None) -> int:
+    """veragmil-dataset-info: summarize demonstration files."""
+    p = argparse.ArgumentParser(
+        prog="veragmil-dataset-info", description="Summarize ScoopGranular demonstration files."
+    )
+    p.add_argument("datasets", nargs="+", help="HDF5 files")
+    p.add_argument("--verbose", "-v", action="store_true", help="one line per demo")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    args = p.parse_args(argv)
+    out = []
+    for path in args.datasets:
+        try:
+            summary = dataset_summary(path)
+        except DatasetError as e:
+            return _fail("veragmil-dataset-info", e)
+        if not args.verbose:
+            summary.pop("demo_list")
+        out.append(summary)
+    if args.json:
+        print(json.dumps(out if len(out) > 1 else out[0], indent=2, default=str))
+    else:
+        print("\n\n".join(format_summary(s, args.verbose) for s in out))
+    return 0
+
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# merge and split                                                                                                  #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+def merge_datasets(inputs: list[str | Path], output: str | Path, valid_ratio: float = 0.1) -> int:
+    """Merge ``inputs`` into a new file ``output``; returns the number of demos. Each demo keeps its provenance.
+
+    Raises:
+        DatasetError: [an input is not a ScoopGranular dataset, or inputs differ in robot, controller, control
+            rate, cameras or observation keys]
+    """
+    output = Path(output)
+    if any(Path(i).resolve() == output.resolve() for i in inputs):
+        raise DatasetError(f"{output} is also an input: merge into a new file")
+    first_meta, first_obs, attempts, sources = None, None, [], []
+    tmp = output.with_name(output.name + ".partial")
+    try:
+        with h5py.File(tmp, "w") as fout:
+            data_out = fout.create_group("data")
+            index = 0
+            for path in inputs:
+                with open_dataset(path) as fin:
+                    data_in = fin["data"]
+                    meta = json.loads(data_in.attrs["env_args"])
+                    names = demo_names(fin)
+                    obs = {k: d.shape[1:] for k, d in data_in[names[0]]["obs"].items()} if names else None
+                    if first_meta is None:
+                        first_meta = meta
+                        for key, value in data_in.attrs.items():
+                            data_out.attrs[key] = value
+                    else:
+                        differ = [
+                            k
+                            for k in COMPATIBLE_KWARGS
+                            if json.dumps(meta["env_kwargs"].get(k), sort_keys=True)
+                            != json.dumps(first_meta["env_kwargs"].get(k), sort_keys=True)
+                        ]
+                        if differ:
+                            raise DatasetError(f"{path} was recorded with other {', '.join(differ)} than {inputs[0]}")
+                    if obs is not None:
+                        if first_obs is None:
+                            first_obs = obs
+                        elif obs != first_obs:
+                            raise DatasetError(f"{path} has other observation keys or shapes than the files before it")
+                    for name in names:
+                        new = f"demo_{index}"
+                        fin.copy(data_in[name], data_out, name=new)
+                        g = data_out[new]
+                        g.attrs["merged_from"] = f"{path}:{name}"
+                        if "env_args" not in g.attrs:
+                            g.attrs["env_args"] = json.dumps(meta)
+                        if "food" not in g.attrs and "food" in meta["env_kwargs"]:
+                            g.attrs["food"] = meta["env_kwargs"]["food"]
+                        index += 1
+                    for entry in json.loads(data_in.attrs.get("attempts", "[]")):
+                        attempts.append(dict(entry, source=str(path)))
+                    sources.append(str(path))
+            if first_meta is None:
+                raise DatasetError("no input files")
+            data_out.attrs["attempts"] = json.dumps(attempts)
+            data_out.attrs["merged_from"] = json.dumps(sources)
+            refresh_summary(fout, valid_ratio)
+        os.replace(tmp, output)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return index
+
+
+def merge_main(argv: list[str] | None = None) -> int:
+    """veragmil-merge: merge demonstration files into a new one."""
+    p = argparse.ArgumentParser(
+        prog="veragmil-merge",
+        description="Merge ScoopGranular demonstration files into a new file (demos renumbered demo_0...; each "
+        "keeps its food, device, operator and metrics; the attempt logs are joined; masks are redone).",
+    )
+    p.add_argument("inputs", nargs="+", help="HDF5 files to merge, in order")
+    p.add_argument("--output", "-o", required=True, help="the merged file (must not exist unless --force)")
+    p.add_argument("--valid-ratio", type=float, default=0.1, help="fraction of demos in mask/valid")
+    p.add_argument("--force", action="store_true", help="overwrite --output")
+    args = p.parse_args(argv)
+    if Path(args.output).exists() and not args.force:
+        return _fail("veragmil-merge", DatasetError(f"{args.output} exists (use --force to overwrite it)"))
+    try:
+        n = merge_datasets(args.inputs, args.output, args.valid_ratio)
+    except DatasetError as e:
+        return _fail("veragmil-merge", e)
+    print(f"merged {n} demos from {len(args.inputs)} files into {args.output}")
+    return 0
+
+
+def split_dataset(path: str | Path, ratio: float, seed: int = 0, filter_key: str | None = None) -> tuple[int, int]:
+    """Rewrite the train/valid masks of ``path`` (``<filter_key>_train/_valid`` within a filter key)."""
+    if not 0 <= ratio < 1:
+        raise DatasetError(f"the validation ratio must lie in [0, 1), got {ratio}")
+    with open_dataset(path, "a") as f:
+        if filter_key is None:
+            names, prefix = demo_names(f), ""
+        else:
+            if "mask" not in f or filter_key not in f["mask"]:
+                have = ", ".join(f["mask"].keys()) if "mask" in f else "none"
+                raise DatasetError(f"{path} has no filter key {filter_key!r} (it has: {have})")
+            names, prefix = [n.decode() for n in f["mask"][filter_key][()]], filter_key + "_"
+        train, valid = split_demos(names, ratio, seed)
+        if "mask" not in f:
+            write_masks(f)
+        for key, members in (("train", train), ("valid", valid)):
+            if prefix + key in f["mask"]:
+                del f["mask"][prefix + key]
+            f["mask"].create_dataset(prefix + key, data=np.array(members, dtype="S"))
+    return len(train), len(valid)
+
+
+def split_main(argv: list[str] | None = None) -> int:
+    """veragmil-split: redo the train/valid split."""
+    p = argparse.ArgumentParser(
+        prog="veragmil-split",
+        description="Split a demonstration file into train and valid demos (robomimic's mask/train, mask/valid), "
+        "in place.",
+    )
+    p.add_argument("dataset", help="HDF5 file")
+    p.add_argument("--ratio", type=float, default=0.1, help="fraction of demos for validation")
+    p.add_argument("--seed", type=int, default=0, help="seed of the shuffle")
+    p.add_argument(
+        "--filter-key", default=None, help="split only these demos (e.g. success, rice), into <key>_train/_valid"
+    )
+    args = p.parse_args(argv)
+    try:
+        n_train, n_valid = split_dataset(args.dataset, args.ratio, args.seed, args.filter_key)
+    except DatasetError as e:
+        return _fail("veragmil-split", e)
+    prefix = f"{args.filter_key}_" if args.filter_key else ""
+    print(f"{args.dataset}: mask/{prefix}train {n_train} demos, mask/{prefix}valid {n_valid} demos")
+    return 0
+
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# replay and re-rendering: an environment rebuilt from the file                                                    #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+class DemoEnvs:
+    """Environments for a file's demos, built from each demo's own env_args (a merged file may mix foods)."""
+
+    def __init__(self, f: h5py.File, **overrides):
+        self.file_meta = json.loads(f["data"].attrs["env_args"])
+        self.overrides = overrides
+        self._key = None
+        self.env = None
+
+    def for_demo(self, g: h5py.Group):
+        meta = json.loads(g.attrs["env_args"]) if "env_args" in g.attrs else self.file_meta
+        kwargs = {k: v for k, v in meta["env_kwargs"].items() if k not in ("env_name",)}
+        kwargs.update(self.overrides)
+        kwargs.update(has_renderer=False, ignore_done=True)
+        key = json.dumps(kwargs, sort_keys=True)
+        if key != self._key:
+            self.close()
+            import robosuite
+
+            import veragmil_suite  # noqa: F401  (registers ScoopGranular)
+
+            self.env = robosuite.make(meta["env_name"], **kwargs)
+            self.env.reset()
+            self._key = key
+        return self.env
+
+    def start(self, g: h5py.Group):
+        """The demo's env, reset to its first state; returns (env, observation)."""
+        env = self.for_demo(g)
+        variant = int(g.attrs["pile_variant"]) if "pile_variant" in g.attrs else None
+        obs = reset_to_demo(env, _text(g.attrs["model_file"]), g["states"][0], variant)
+        return env, obs
+
+    def close(self):
+        if self.env is not None:
+            self.env.close()
+            self.env = None
+
+
+def _text(value) -> str:
+    return value.decode() if isinstance(value, bytes) else str(value)
+
+
+def _render(env, camera: str, height: int, width: int) -> np.ndarray:
+    import robosuite.macros
+
+    frame = env.sim.render(camera_name=camera, height=height, width=width)
+    return frame[::-1] if robosuite.macros.IMAGE_CONVENTION == "opengl" else frame
+
+
+def _check_camera(env, camera: str) -> None:
+    names = [env.sim.model.camera_id2name(i) for i in range(env.sim.model.ncam)]
+    if camera not in names:
+        raise DatasetError(f"no camera {camera!r} in this scene; cameras: {', '.join(names)}")
+
+
+def _select_demos(f: h5py.File, demos: list[str] | None, n: int | None, filter_key: str | None = None) -> list[str]:
+    names = demo_names(f)
+    if filter_key:
+        if "mask" not in f or filter_key not in f["mask"]:
+            raise DatasetError(f"no filter key {filter_key!r}")
+        keep = {x.decode() for x in f["mask"][filter_key][()]}
+        names = [x for x in names if x in keep]
+    if demos:
+        missing = [d for d in demos if d not in names]
+        if missing:
+            raise DatasetError(
+                f"no demo {', '.join(missing)} (demos: {', '.join(names[:10])}{'...' if len(names) > 10 else ''})"
+            )
+        names = list(demos)
+    return names[:n] if n else names
+
+
+def replay_demos(
+    path: str | Path,
+    video: str | Path | None,
+    demos: list[str] | None = None,
+    n: int | None = None,
+    camera: str = "agentview",
+    height: int = 480,
+    width: int = 640,
+    fps: float | None = None,
+    skip: int = 1,
+    use_actions: bool = False,
+) -> list[dict]:
+    """Replay demos to one mp4, from their states or (use_actions) their actions open loop.
+
+    Returns, per demo: its name, steps, and with use_actions the largest state error against the recorded
+    states (0.0 when replay is exact) and the final metrics of the replay.
+    """
+    import imageio
+
+    with open_dataset(path) as f:
+        names = _select_demos(f, demos, n)
+        envs = DemoEnvs(f, has_offscreen_renderer=video is not None, use_camera_obs=False)
+        writer = None
+        results = []
+        try:
+            for name in names:
+                g = f["data"][name]
+                env, _ = envs.start(g)
+                if video is not None:
+                    _check_camera(env, camera)
+                    if writer is None:
+                        writer = imageio.get_writer(str(video), fps=fps or env.control_freq / skip, macro_block_size=1)
+                states, actions = g["states"][()], g["actions"][()]
+                result = dict(demo=name, steps=len(actions))
+                errors = []
+                info = {}
+                for t in range(len(actions)):
+                    if use_actions:
+                        if t > 0:
+                            errors.append(float(np.abs(env.sim.get_state().flatten() - states[t]).max()))
+                    else:
+                        env.sim.set_state_from_flattened(states[t])
+                        env.sim.forward()
+                    if writer is not None and t % skip == 0:
+                        writer.append_data(_render(env, camera, height, width))
+                    if use_actions:
+                        _, _, _, info = env.step(actions[t])
+                if use_actions:
+                    result["max_state_error"] = max(errors) if errors else 0.0
+                    result["success"] = bool(info.get("success", False))
+                    result["grains_in_spoon"] = int(info.get("grains_in_spoon", 0))
+                    result["grains_spilled"] = int(info.get("grains_spilled", 0))
+                results.append(result)
+        finally:
+            if writer is not None:
+                writer.close()
+            envs.close()
+    return results
+
+
+def replay_main(argv: list[str] | None = None) -> int:
+    """veragmil-replay: replay demonstrations to a video."""
+    p = argparse.ArgumentParser(
+        prog="veragmil-replay",
+        description="Replay demos of a ScoopGranular file to an mp4: from the recorded states (default), or by "
+        "replaying the actions open loop from the first state, which also checks that replay reproduces the states.",
+    )
+    p.add_argument("dataset", help="HDF5 file")
+    p.add_argument("--output", "-o", default=None, help="mp4 to write (all selected demos in sequence)")
+    p.add_argument("--demos", nargs="+", default=None, help="demo names (default: all)")
+    p.add_argument("--n", type=int, default=None, help="only the first N selected demos")
+    p.add_argument("--camera", default="agentview", help="camera to render (overhead, agentview, frontview, ...)")
+    p.add_argument("--size", type=int, nargs="+", default=[480, 640], metavar="PX", help="height [width]")
+    p.add_argument("--fps", type=float, default=None, help="video frame rate (default: real time)")
+    p.add_argument("--skip", type=int, default=1, help="render every k-th step")
+    p.add_argument("--use-actions", action="store_true", help="replay actions open loop and report the state error")
+    args = p.parse_args(argv)
+    if args.output is None and not args.use_actions:
+        p.error("give --output (a video) and/or --use-actions (a replay check)")
+    os.environ.setdefault("MUJOCO_GL", "osmesa")
+    height, width = (args.size * 2)[:2]
+    try:
+        results = replay_demos(
+            args.dataset,
+            args.output,
+            args.demos,
+            args.n,
+            args.camera,
+            height,
+            width,
+            args.fps,
+            args.skip,
+            args.use_actions,
+        )
+    except DatasetError as e:
+        return _fail("veragmil-replay", e)
+    for r in results:
+        line = f"{r['demo']}: {r['steps']} steps"
+        if "max_state_error" in r:
+            exact = "exact" if r["max_state_error"] == 0.0 else "NOT exact"
+            line += (
+                f"; action replay {exact} (largest state error {r['max_state_error']:.3g}); "
+                f"{'success' if r['success'] else 'failure'}, {r['grains_in_spoon']} grains in the spoon, "
+                f"{r['grains_spilled']} spilled"
+            )
+        print(line)
+    if args.output:
+        print(f"wrote {args.output}")
+    return 0 if all(r.get("max_state_error", 0.0) == 0.0 for r in results) else 1
+
+
+def render_observations(
+    path: str | Path,
+    output: str | Path,
+    cameras: list[str],
+    height: int,
+    width: int,
+    depth: bool = False,
+    demos: list[str] | None = None,
+) -> int:
+    """Copy a dataset with its camera observations re-rendered from the states; returns the number of demos.
+
+    Everything else (actions, states, rewards, dones, low-dim observations, attributes, masks) is copied as is.
+    next_obs of the last step comes from replaying the last action (as robomimic's dataset_states_to_obs does).
+    """
+    output = Path(output)
+    if Path(path).resolve() == output.resolve():
+        raise DatasetError("write the re-rendered dataset to a new file")
+    tmp = output.with_name(output.name + ".partial")
+    overrides = dict(
+        use_camera_obs=True,
+        has_offscreen_renderer=True,
+        camera_names=list(cameras),
+        camera_heights=height,
+        camera_widths=width,
+        camera_depths=depth,
+    )
+    try:
+        with open_dataset(path) as fin, h5py.File(tmp, "w") as fout:
+            names = _select_demos(fin, demos, None)
+            data_in = fin["data"]
+            data_out = fout.create_group("data")
+            for key, value in data_in.attrs.items():
+                data_out.attrs[key] = value
+            data_out.attrs["env_args"] = _with_cameras(_text(data_in.attrs["env_args"]), overrides)
+            envs = DemoEnvs(fin, **overrides)
+            try:
+                for name in names:
+                    g = data_in[name]
+                    env, _ = envs.start(g)
+                    for cam in cameras:
+                        _check_camera(env, cam)
+                    out = data_out.create_group(name)
+                    for key in ("actions", "states", "rewards", "dones"):
+                        fin.copy(g[key], out, name=key)
+                    for key, value in g.attrs.items():
+                        out.attrs[key] = value
+                    if "env_args" in g.attrs:
+                        out.attrs["env_args"] = _with_cameras(_text(g.attrs["env_args"]), overrides)
+                    images = _render_images(env, g["states"][()], g["actions"][()])
+                    for group in ("obs", "next_obs"):
+                        og = out.create_group(group)
+                        for key, d in g[group].items():
+                            if not _is_camera_key(key):
+                                fin.copy(d, og, name=key)
+                        for key, frames in images[group].items():
+                            og.create_dataset(key, data=frames, compression="gzip", compression_opts=4, shuffle=True)
+            finally:
+                envs.close()
+            if "mask" in fin:
+                fin.copy(fin["mask"], fout, name="mask")
+            if demos:
+                write_masks(fout)
+        os.replace(tmp, output)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return len(names)
+
+
+def _is_camera_key(key: str) -> bool:
+    return key.endswith("_image") or key.endswith("_depth")
+
+
+def _render_images(env, states: np.ndarray, actions: np.ndarray) -> dict:
+    frames = []
+    for state in states:
+        env.sim.set_state_from_flattened(state)
+        frames.append({k: v for k, v in robomimic_obs(env, observe(env)).items() if _is_camera_key(k)})
+    env.sim.set_state_from_flattened(states[-1])
+    env.sim.forward()
+    env.step(actions[-1])
+    last = {k: v for k, v in robomimic_obs(env, observe(env)).items() if _is_camera_key(k)}
+    keys = frames[0].keys()
+    obs = {k: np.stack([fr[k] for fr in frames]) for k in keys}
+    next_obs = {k: np.concatenate([obs[k][1:], last[k][None]]) for k in keys}
+    return dict(obs=obs, next_obs=next_obs)
+
+
+def _with_cameras(env_args_json: str, overrides: dict) -> str:
+    meta = json.loads(env_args_json)
+    meta["env_kwargs"].update({k: v for k, v in overrides.items() if k != "has_offscreen_renderer"})
+    meta["env_kwargs"]["has_offscreen_renderer"] = True
+    return json.dumps(meta, indent=4)
+
+
+def render_obs_main(argv: list[str] | None = None) -> int:
+    """veragmil-render-obs: re-render camera observations from the states."""
+    p = argparse.ArgumentParser(
+        prog="veragmil-render-obs",
+        description="Write a copy of a ScoopGranular dataset whose camera observations (<camera>_image, "
+        "<camera>_depth) are re-rendered from the recorded states, for other cameras or image sizes.",
+    )
+    p.add_argument("dataset", help="HDF5 file")
+    p.add_argument("--output", "-o", required=True, help="new HDF5 file")
+    p.add_argument("--cameras", nargs="+", default=["overhead"], help="cameras to render")
+    p.add_argument("--size", type=int, nargs="+", default=[84], metavar="PX", help="height [width]")
+    p.add_argument("--depth", action="store_true", help="also render <camera>_depth")
+    p.add_argument("--demos", nargs="+", default=None, help="only these demos")
+    p.add_argument("--force", action="store_true", help="overwrite --output")
+    args = p.parse_args(argv)
+    if Path(args.output).exists() and not args.force:
+        return _fail("veragmil-render-obs", DatasetError(f"{args.output} exists (use --force to overwrite it)"))
+    os.environ.setdefault("MUJOCO_GL", "osmesa")
+    height, width = (args.size * 2)[:2]
+    try:
+        n = render_observations(args.dataset, args.output, args.cameras, height, width, args.depth, args.demos)
+    except DatasetError as e:
+        return _fail("veragmil-render-obs", e)
+    print(f"wrote {n} demos with {', '.join(args.cameras)} at {height}x{width} to {args.output}")
+    return 0
