@@ -187,9 +187,9 @@ def robomimic_observation(env, raw: dict | None = None, postprocess: bool = Fals
     Every enabled observable is kept under its own name (``robot0_eef_pos``, ``desired_pose``, ...), robosuite's
     concatenation ``object-state`` becomes ``object``, other ``*-state`` concatenations and empty observables (the
     spoon's gripper_qpos: robomimic's tensor reshapes fail on them) are left out, and camera images are made
-    upright. Datasets written with this function (postprocess=False) hold exactly what policies
-    see in rollouts; with postprocess=True, the rgb and depth keys robomimic's ObsUtils knows are prepared for
-    the networks (channels first, scaled).
+    upright. A recorder that passes step()'s observations through this function (postprocess=False) stores exactly
+    what policies see in rollouts; with postprocess=True, the rgb and depth keys robomimic's ObsUtils knows are
+    prepared for the networks (channels first, scaled).
     """
     import robosuite.macros
     from robomimic.utils import obs_utils
