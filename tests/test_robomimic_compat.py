@@ -93,15 +93,13 @@ def test_observations_keep_task_keys_and_drop_empty_and_concatenated_ones():
     env.env.close()
 
 
-def test_state_keeps_this_simulations_xml_and_restores_observations():
+def test_step_observes_the_state_reached_and_state_keeps_this_simulations_xml():
     _low_dim_specs()
     env = _scoop_env()
     env.reset()
     for _ in range(3):
-        env.step(np.full(6, 0.3))
+        before = env.step(np.full(6, 0.3))[0]
     state = env.get_state()
-    env.env.sim.forward()  # robosuite's lite physics leaves kinematics one substep behind the state after a step
-    before = env.get_observation()
     # compiling another model makes robosuite's sim.model.get_xml() return that model's XML
     other = mujoco.MjModel.from_xml_string(
         "<mujoco><worldbody><body><freejoint/><geom size='.1'/></body></worldbody></mujoco>"

@@ -3,8 +3,8 @@ Records a tiny dataset in robomimic's HDF5 schema from short episodes of any rob
 
 The environment is built and observed through robomimic's own EnvRobosuite (with veragmil_suite's compatibility
 layer), so the file's env_args are exactly what robomimic recreates for rollouts, and each observation is that of
-the recorded state (what robomimic's dataset_states_to_obs extracts). Actions are a smooth random walk: the data only
-has to have the right form.
+the recorded state: what policies see in rollouts and what robomimic's dataset_states_to_obs extracts. Actions are
+a smooth random walk: the data only has to have the right form.
 """
 
 from __future__ import annotations
@@ -85,12 +85,7 @@ def record_tiny_dataset(
             for t in range(steps):
                 action = np.clip(0.7 * action + 0.3 * rng.uniform(-1, 1, size=low.shape), -1, 1)
                 record["states"].append(env.get_state()["states"])
-                _, reward, done, _ = env.step(np.clip(action_scale * action, low, high))
-                # the observation of the state reached, as reset_to(state) gives it: step()'s own observation is
-                # older (robosuite's lite physics leaves kinematics one substep behind, and under ScoopGranular's
-                # 1/240 s step its samplers read the first substep of the control period)
-                env.env.sim.forward()
-                next_obs = env.get_observation()
+                next_obs, reward, done, _ = env.step(np.clip(action_scale * action, low, high))
                 record["actions"].append(action_scale * action)
                 record["rewards"].append(reward)
                 record["dones"].append(int(t == steps - 1))
