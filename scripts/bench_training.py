@@ -75,6 +75,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--dataset", default=None, help="robomimic HDF5 with the configs' observation keys")
     parser.add_argument("--steps", type=int, default=30, help="timed gradient steps, low-dim configs")
     parser.add_argument("--image-steps", type=int, default=3, help="timed gradient steps, image configs")
+    parser.add_argument("--threads", type=int, default=2, help="torch threads (robomimic's train.py uses 2)")
     args = parser.parse_args(argv)
 
     from veragmil_suite import robomimic_compat
@@ -82,7 +83,7 @@ def main(argv: list[str] | None = None) -> None:
     robomimic_compat.install()
     import torch
 
-    torch.set_num_threads(2)  # as robomimic's train.py does
+    torch.set_num_threads(args.threads)
     dataset = args.dataset
     if dataset is None:
         sys.path.insert(0, str(ROOT / "tests"))
@@ -93,13 +94,18 @@ def main(argv: list[str] | None = None) -> None:
         record_tiny_dataset(dataset, episodes=6, steps=40, camera_names=("overhead",), camera_depths=True)
         print(f"recorded 6 x 40 ScoopGranular steps with RGB-D in {time.perf_counter() - started:.0f} s: {dataset}")
 
+    # OpenMP threads stall when other processes hold the cores: the load average tells whether figures are clean
+    load_before = os.getloadavg()[0]
     rows = []
     for name in args.algos:
         steps = args.image_steps if "image" in name or "rgbd" in name else args.steps
         rows.append(bench_algo(name, dataset, steps))
         print(f"{name}: {rows[-1]['samples_per_s']:.0f} samples/s", flush=True)
 
-    print(f"\ntraining throughput, CPU, {torch.get_num_threads()} torch threads (robomimic {_version('robomimic')})")
+    print(
+        f"\ntraining throughput, CPU ({os.cpu_count()} cores, load average {load_before:.1f} -> "
+        f"{os.getloadavg()[0]:.1f}), {torch.get_num_threads()} torch threads, robomimic {_version('robomimic')}"
+    )
     print("| config | batch | seq | gradient steps/s | samples/s | frames/s |")
     print("|---|---|---|---|---|---|")
     for r in rows:
