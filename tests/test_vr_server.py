@@ -1,0 +1,250 @@
+"""The VR server without a simulator: page serving, authentication, robustness counters, frames, TLS."""
+
+import json
+import socket
+import ssl
+import subprocess
+import time
+import urllib.error
+import urllib.request
+
+import aiohttp
+import pytest
+from vr_helpers import Client, controller, pose_message
+
+from veragmil_suite.devices import vr_tls
+from veragmil_suite.devices.vr_protocol import PoseMessage, pack_frame
+from veragmil_suite.devices.vr_server import MAX_WS_FRAME_BYTES, VRServer, is_loopback
+
+
+class Recorder:
+    def __init__(self, fail_on=None):
+        self.poses: list[PoseMessage] = []
+        self.fail_on = fail_on
+
+    def __call__(self, msg, recv_time):
+        if self.fail_on is not None and msg.seq == self.fail_on:
+            raise RuntimeError("handler bug")
+        self.poses.append(msg)
+
+
+@pytest.fixture
+def server():
+    rec = Recorder()
+    srv = VRServer(port=0, on_pose=rec, hello_timeout=0.5, auth_failure_delay=0.0).start()
+    srv.recorder = rec
+    yield srv
+    srv.stop()
+
+
+def wait_for(cond, timeout=5.0):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if cond():
+            return True
+        time.sleep(0.01)
+    return cond()
+
+
+def fetch(url):
+    with urllib.request.urlopen(url, timeout=5) as r:
+        return r.status, r.headers, r.read()
+
+
+def test_serves_the_page_and_its_modules_without_leaking_other_files(server):
+    status, headers, body = fetch(server.url)
+    assert status == 200 and b'<script type="module" src="static/main.js">' in body
+    assert "default-src 'self'" in headers["Content-Security-Policy"]
+    assert f"ws://localhost:{server.port}" in headers["Content-Security-Policy"]
+    for name in ("main.js", "link.js", "xr_input.js", "quad_renderer.js", "mat4.js"):
+        status, headers, body = fetch(server.url + "static/" + name)
+        assert status == 200 and "javascript" in headers["Content-Type"] and body
+    for path in ("static/../vr.py", "static/%2e%2e/vr.py", "vr.py"):
+        with pytest.raises(urllib.error.HTTPError) as e:
+            fetch(server.url + path)
+        assert e.value.code in (403, 404)
+
+
+def test_messages_flow_and_bad_ones_are_dropped_and_counted(server):
+    c = Client(server.url).connect()
+    assert c.welcome["connection"] == 1
+    good = [pose_message(i, 10.0 * i, right=controller()) for i in range(3)]
+    c.send(good[0])
+    c.send("{not json")
+    c.send(b"\x00binary")
+    c.send(json.dumps({"v": 1, "type": "pose", "seq": 1}))  # fields missing
+    c.send(pose_message(1, 10.0, right=controller()).replace('"v": 1', '"v": 9'))  # another schema version
+    c.send(pose_message(1, 10.0, right=controller()) + " " * 9000)  # oversized for a pose
+    c.send(good[1])
+    c.send(good[0])  # replayed: seq not increasing
+    c.send(pose_message(5, 5.0, right=controller()))  # time going backwards
+    c.send(good[2])
+    assert wait_for(lambda: len(server.recorder.poses) == 3)
+    assert [m.seq for m in server.recorder.poses] == [0, 1, 2]
+    stats = server.stats()
+    assert stats["accepted"] == 3 and stats["malformed"] == 3 and stats["version"] == 1
+    assert stats["oversized"] == 1 and stats["out_of_order"] == 2
+    assert server.connected  # none of it closed the connection
+    c.close()
+
+
+def test_giant_message_closes_only_that_connection(server):
+    c = Client(server.url).connect()
+    c.send("x" * (MAX_WS_FRAME_BYTES + 1))
+    assert c.wait_closed() == aiohttp.WSCloseCode.MESSAGE_TOO_BIG
+    assert wait_for(lambda: server.stats()["oversized"] == 1)
+    c.close()
+    c2 = Client(server.url).connect()  # the server itself is fine
+    c2.send(pose_message(0, 0.0))
+    assert wait_for(lambda: server.stats()["accepted"] == 1)
+    c2.close()
+
+
+def test_hello_is_required(server):
+    c = Client(server.url).connect(hello=pose_message(0, 0.0), wait_welcome=False)
+    assert c.wait_closed() == 4401
+    c.close()
+    silent = Client(server.url).connect(hello=" ", wait_welcome=False)  # whitespace is not a hello either
+    assert silent.wait_closed() == 4401
+    silent.close()
+    assert server.stats()["unauthenticated"] == 2
+
+
+def test_hello_timeout(server):
+    session_client = Client(server.url)
+
+    async def connect_and_wait():
+        async with aiohttp.ClientSession() as s:
+            async with s.ws_connect(session_client.url) as ws:
+                msg = await ws.receive(timeout=5)
+                return msg.type, ws.close_code
+
+    kind, code = session_client._run(connect_and_wait())
+    assert code == 4408
+    session_client.close()
+
+
+def test_pairing_token_and_lockout():
+    srv = VRServer(port=0, token="K7QM-2XPA", auth_failure_delay=0.0).start()
+    try:
+        assert srv.requires_token
+        bad = Client(srv.url, token="AAAA-AAAA").connect(wait_welcome=False)
+        assert bad.wait_closed() == 4401
+        bad.close()
+        none = Client(srv.url, token=None).connect(wait_welcome=False)
+        assert none.wait_closed() == 4401
+        none.close()
+        ok = Client(srv.url, token="k7qm2xpa").connect()  # typed without the dash, lower case
+        assert ok.welcome is not None
+        ok.close()
+        for _ in range(3):
+            c = Client(srv.url, token="WRONG").connect(wait_welcome=False)
+            c.wait_closed()
+            c.close()
+        locked = Client(srv.url, token="K7QM-2XPA").connect(wait_welcome=False)  # even the right token, now
+        assert locked.wait_closed() == 4429
+        locked.close()
+        stats = srv.stats()
+        assert stats["auth_failed"] == 5 and stats["locked_out"] == 1 and stats["connections"] == 1
+    finally:
+        srv.stop()
+
+
+def test_binding_beyond_localhost_needs_a_token_and_defaults_to_https():
+    assert is_loopback("127.0.0.1") and is_loopback("localhost") and is_loopback("::1")
+    assert not is_loopback("0.0.0.0") and not is_loopback("192.168.1.20")
+    lan = VRServer(host="0.0.0.0")
+    assert lan.requires_token and len(lan.token) == 9 and lan.tls
+    local = VRServer()
+    assert not local.requires_token and local.token is None and not local.tls
+
+
+def test_cross_site_pages_cannot_open_the_socket(server):
+    evil = Client(server.url, headers={"Origin": "https://evil.example"})
+    with pytest.raises(aiohttp.WSServerHandshakeError) as e:
+        evil.connect()
+    assert e.value.status == 403
+    evil.close()
+    same = Client(server.url, headers={"Origin": f"http://localhost:{server.port}"}).connect()
+    assert same.welcome is not None
+    same.close()
+    assert server.stats()["forbidden_origin"] == 1
+
+
+def test_a_new_connection_supersedes_the_old_one(server):
+    first = Client(server.url).connect()
+    second = Client(server.url).connect()
+    assert first.wait_closed() == 4000
+    assert second.welcome["connection"] == 2 and server.connected
+    second.send(pose_message(0, 0.0))
+    assert wait_for(lambda: server.stats()["accepted"] == 1)
+    assert server.stats()["superseded"] == 1
+    first.close()
+    second.close()
+
+
+def test_only_the_newest_frame_is_sent(server):
+    c = Client(server.url).connect()
+    payload = b"\xff" * 200_000
+    for i in range(1, 101):
+        server.publish_frame(pack_frame(payload, i, i / 30, 320, 240, 1))
+    assert wait_for(lambda: c.frames and c.frames[-1][1]["frame_id"] == 100)
+    time.sleep(0.2)
+    received = [h["frame_id"] for _, h in c.frames]
+    assert received == sorted(received) and len(received) < 100
+    stats = server.stats()
+    assert stats["frames_sent"] == len(received) and stats["frames_skipped"] >= 1
+    c.close()
+
+
+def test_status_is_throttled_to_the_newest(server):
+    c = Client(server.url).connect()
+    for i in range(200):
+        server.publish_status({"n": i})
+    assert wait_for(lambda: c.statuses and c.statuses[-1]["n"] == 199)
+    assert len(c.statuses) < 10
+    c.close()
+
+
+def test_a_failing_handler_is_counted_not_fatal():
+    rec = Recorder(fail_on=1)
+    srv = VRServer(port=0, on_pose=rec).start()
+    try:
+        c = Client(srv.url).connect()
+        for i in range(3):
+            c.send(pose_message(i, float(i)))
+        assert wait_for(lambda: len(rec.poses) == 2)
+        assert srv.stats()["handler_errors"] == 1 and srv.connected
+        c.close()
+    finally:
+        srv.stop()
+
+
+def test_stop_frees_the_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    for _ in range(2):
+        srv = VRServer(port=port).start()
+        assert fetch(srv.url)[0] == 200
+        srv.stop()
+
+
+def test_https_with_a_generated_certificate_that_is_kept(tmp_path):
+    srv = VRServer(port=0, tls=True, cert_dir=str(tmp_path)).start()
+    try:
+        assert srv.url.startswith("https://localhost:")
+        ctx = ssl.create_default_context(cafile=srv.cert)  # trust exactly the self-signed certificate
+        with urllib.request.urlopen(srv.url, context=ctx, timeout=5) as r:
+            assert r.status == 200
+        out = subprocess.run(
+            ["openssl", "x509", "-in", srv.cert, "-noout", "-fingerprint", "-sha256"], capture_output=True, text=True
+        ).stdout
+        assert out.strip().split("=", 1)[1] == srv.fingerprint
+    finally:
+        srv.stop()
+    mtime = (tmp_path / "cert.pem").stat().st_mtime_ns
+    cert, _ = vr_tls.ensure_certificate(["localhost", "127.0.0.1"], tmp_path)
+    assert cert.stat().st_mtime_ns == mtime  # the same names: the certificate the headset trusts is kept
+    vr_tls.ensure_certificate(["localhost", "127.0.0.1", "10.1.2.3"], tmp_path)
+    assert vr_tls._cert_names(cert) >= {"localhost", "127.0.0.1", "10.1.2.3"}  # a new address: remade

@@ -1,0 +1,481 @@
+"""The VR server: one port serving the WebXR page and a WebSocket, in a background thread (aiohttp).
+
+One operator drives the robot at a time: the newest authenticated connection wins and the previous one is closed
+(a page reload reconnects before the old socket has timed out). Every message is validated
+(``vr_protocol.parse_client_message``); malformed, oversized, out-of-order and unauthenticated messages are
+dropped and counted in ``stats()``, never raised: the teleoperation loop must outlive anything a client sends.
+
+Security: the server binds to 127.0.0.1 by default (USB with ``adb reverse``). Binding any other address needs a
+pairing token (generated when not given, shown in the terminal, entered on the page or passed as ``?token=``),
+and turns HTTPS on by default. Repeated wrong tokens lock the address out for a minute, so the 40-bit token
+cannot be guessed online. Browsers may only open the WebSocket from the page's own origin, so another web site
+open in the operator's browser cannot drive the robot through localhost.
+
+Camera frames are sent newest-first: the server keeps only the latest frame, and a connection still busy sending
+the previous one skips to whatever is newest when it is done (``frames_skipped``).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import collections
+import hmac
+import ipaddress
+import logging
+import re
+import secrets
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from urllib.parse import urlsplit
+
+from aiohttp import WSCloseCode, WSMsgType, web
+
+from veragmil_suite.devices import vr_tls
+from veragmil_suite.devices.vr_protocol import (
+    MAX_MESSAGE_BYTES,
+    HelloMessage,
+    PongMessage,
+    PoseMessage,
+    ProtocolError,
+    parse_client_message,
+    server_message,
+)
+
+LOG = logging.getLogger(__name__)
+
+WEB_DIR = Path(__file__).resolve().parent / "web"
+MAX_WS_FRAME_BYTES = 64 * 1024  # larger WebSocket messages are not even buffered: the connection is closed
+TOKEN_ALPHABET = "ABCDEFGHJKLMNPQRSTUVWXYZ23456789"  # no 0/O, 1/I: typed on a headset keyboard
+AUTH_MAX_FAILURES = 5
+AUTH_WINDOW_S = 60.0
+PING_INTERVAL_S = 1.0
+_HOST_RE = re.compile(r"[A-Za-z0-9.\-\[\]:]+")  # a Host header fit to be echoed into the page's CSP
+
+# close codes in the application range (4000-4999)
+CLOSE_SUPERSEDED = 4000
+CLOSE_UNAUTHORIZED = 4401
+CLOSE_HELLO_TIMEOUT = 4408
+CLOSE_LOCKED_OUT = 4429
+
+COUNTERS = (
+    "connections",  # WebSocket connections accepted (authenticated)
+    "received",  # text messages received from authenticated clients
+    "accepted",  # pose messages handed to the device
+    "malformed",  # not JSON, not the schema, binary, unknown type
+    "oversized",  # longer than MAX_MESSAGE_BYTES (or than MAX_WS_FRAME_BYTES: connection closed)
+    "version",  # a schema version this server does not speak
+    "out_of_order",  # seq not increasing or t decreasing
+    "handler_errors",  # the device's pose handler raised (logged)
+    "auth_failed",  # wrong or missing pairing token
+    "locked_out",  # connections refused after repeated wrong tokens
+    "unauthenticated",  # first message not a hello, or none within the hello timeout
+    "forbidden_origin",  # WebSocket opened from another site's page
+    "superseded",  # connections closed because a newer one authenticated
+    "frames_published",
+    "frames_sent",
+    "frames_skipped",
+    "status_sent",
+)
+
+
+def is_loopback(host: str) -> bool:
+    """Whether binding to host keeps the server unreachable from the network."""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def new_token() -> str:
+    """A pairing token: 8 characters from a 32-letter alphabet (40 bits), shown as XXXX-XXXX."""
+    raw = "".join(secrets.choice(TOKEN_ALPHABET) for _ in range(8))
+    return f"{raw[:4]}-{raw[4:]}"
+
+
+def _canonical_token(token: str) -> str:
+    return "".join(c for c in token.upper() if c.isalnum())
+
+
+class VRServer:
+    """aiohttp server for the VR page, running its own event loop in a daemon thread.
+
+    Args:
+        host (str): address to bind; 127.0.0.1 by default (use adb reverse for USB)
+        port (int): TCP port; 0 picks a free one (see ``port`` after ``start()``)
+        token (str or None): pairing token; required (and generated when None) when host is not loopback
+        tls (bool or None): serve HTTPS; None means "when host is not loopback"
+        cert, key (str or None): certificate and key files; a self-signed pair is made when absent
+        cert_dir (str or None): where the self-signed pair is kept
+        on_pose (callable): ``on_pose(msg: PoseMessage, recv_time: float)`` called in the server thread
+        on_connect, on_disconnect (callable): called in the server thread with the connection number
+        config (dict): sent to the page in the welcome message
+        status_hz (float): most status messages per second
+        hello_timeout (float): seconds a new connection has to say hello
+        auth_failure_delay (float): seconds a wrong token waits for its answer
+    """
+
+    def __init__(
+        self,
+        host: str = "127.0.0.1",
+        port: int = 8765,
+        token: str | None = None,
+        tls: bool | None = None,
+        cert: str | None = None,
+        key: str | None = None,
+        cert_dir: str | None = None,
+        on_pose: Callable[[PoseMessage, float], None] | None = None,
+        on_connect: Callable[[int], None] | None = None,
+        on_disconnect: Callable[[int], None] | None = None,
+        config: dict | None = None,
+        status_hz: float = 10.0,
+        hello_timeout: float = 5.0,
+        auth_failure_delay: float = 0.5,
+        web_dir: str | Path = WEB_DIR,
+    ):
+        self.host = host
+        self.requested_port = port
+        self.requires_token = token is not None or not is_loopback(host)
+        self.token = (token or new_token()) if self.requires_token else None
+        self.tls = (not is_loopback(host)) if tls is None else tls
+        self.cert, self.key, self.cert_dir = cert, key, cert_dir
+        self.on_pose = on_pose
+        self.on_connect = on_connect
+        self.on_disconnect = on_disconnect
+        self.config = dict(config or {})
+        self.status_interval = 1.0 / status_hz
+        self.hello_timeout = hello_timeout
+        self.auth_failure_delay = auth_failure_delay
+        self.web_dir = Path(web_dir)
+        self.port: int | None = None
+        self.fingerprint: str | None = None
+
+        self._counts = collections.Counter({k: 0 for k in COUNTERS})
+        self._counts_lock = threading.Lock()
+        self._frame: tuple[int, bytes] | None = None
+        self._status: tuple[int, str] | None = None
+        self._publish_lock = threading.Lock()
+        self._failures: dict[str, collections.deque] = {}
+        self._client: web.WebSocketResponse | None = None
+        self._client_id = 0
+        self._rtt_ms: float | None = None
+        self._pings: dict[int, float] = {}
+        self._last_message_time: float | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._wake: asyncio.Event | None = None
+        self._thread: threading.Thread | None = None
+        self._ready = threading.Event()
+        self._error: BaseException | None = None
+        self._runner: web.AppRunner | None = None
+
+    # ------------------------------------------------------------------ lifecycle
+    def start(self, timeout: float = 15.0) -> VRServer:
+        """Start listening (returns once the port is bound; raises what binding raised)."""
+        if self._thread is not None:
+            return self
+        ssl_context = None
+        if self.tls:
+            if self.cert is None or self.key is None:
+                names = ["localhost", "127.0.0.1"] + ([] if is_loopback(self.host) else vr_tls.lan_addresses())
+                if not is_loopback(self.host) and self.host not in ("0.0.0.0", "::"):
+                    names.append(self.host)
+                cert, key = vr_tls.ensure_certificate(names, self.cert_dir)
+                self.cert, self.key = str(cert), str(key)
+            ssl_context = vr_tls.server_context(self.cert, self.key)
+            self.fingerprint = vr_tls.fingerprint(self.cert)
+        self._thread = threading.Thread(target=self._run, args=(ssl_context,), name="vr-server", daemon=True)
+        self._thread.start()
+        if not self._ready.wait(timeout):
+            raise TimeoutError("the VR server did not start")
+        if self._error is not None:
+            self._thread = None
+            raise self._error
+        return self
+
+    def stop(self) -> None:
+        """Close the connection and the port; safe to call twice."""
+        loop, thread = self._loop, self._thread
+        if loop is None or thread is None:
+            return
+        try:
+            asyncio.run_coroutine_threadsafe(self._shutdown(), loop).result(10.0)
+        except Exception:
+            LOG.exception("VR server shutdown")
+        loop.call_soon_threadsafe(loop.stop)
+        thread.join(10.0)
+        self._thread = None
+        self._loop = None
+
+    def _run(self, ssl_context) -> None:
+        loop = asyncio.new_event_loop()
+        asyncio.set_event_loop(loop)
+        self._loop = loop
+        try:
+            loop.run_until_complete(self._startup(ssl_context))
+        except BaseException as e:  # bind errors and the like: reported to start()'s caller
+            self._error = e
+            self._ready.set()
+            loop.close()
+            return
+        self._ready.set()
+        try:
+            loop.run_forever()
+        finally:
+            pending = asyncio.all_tasks(loop)
+            for task in pending:
+                task.cancel()
+            loop.run_until_complete(asyncio.gather(*pending, return_exceptions=True))
+            loop.close()
+
+    async def _startup(self, ssl_context) -> None:
+        self._wake = asyncio.Event()
+        app = web.Application(client_max_size=MAX_MESSAGE_BYTES)
+        app.router.add_get("/", self._index)
+        app.router.add_get("/ws", self._websocket)
+        app.router.add_static("/static/", self.web_dir, show_index=False, follow_symlinks=False)
+        app.on_response_prepare.append(self._headers)
+        self._runner = web.AppRunner(app, access_log=None, handle_signals=False)
+        await self._runner.setup()
+        site = web.TCPSite(self._runner, self.host, self.requested_port, ssl_context=ssl_context, reuse_address=True)
+        await site.start()
+        self.port = self._runner.addresses[0][1]
+
+    async def _shutdown(self) -> None:
+        if self._client is not None and not self._client.closed:
+            await self._client.close(code=WSCloseCode.GOING_AWAY, message=b"server stopping")
+        if self._runner is not None:
+            await self._runner.cleanup()
+
+    # ------------------------------------------------------------------ public, thread-safe
+    @property
+    def url(self) -> str:
+        """The page's address for a browser on this machine (over USB: on the headset too)."""
+        return (
+            f"{'https' if self.tls else 'http'}://{'localhost' if is_loopback(self.host) else self.host}:{self.port}/"
+        )
+
+    def lan_urls(self) -> list[str]:
+        """The page's addresses for a headset on the same network (empty when bound to loopback)."""
+        if is_loopback(self.host):
+            return []
+        hosts = vr_tls.lan_addresses() if self.host in ("0.0.0.0", "::") else [self.host]
+        return [f"{'https' if self.tls else 'http'}://{h}:{self.port}/" for h in hosts]
+
+    @property
+    def connected(self) -> bool:
+        return self._client is not None and not self._client.closed
+
+    @property
+    def connection_id(self) -> int:
+        """Number of the current (or last) authenticated connection."""
+        return self._client_id
+
+    @property
+    def rtt_ms(self) -> float | None:
+        """WebSocket round trip measured by the last ping."""
+        return self._rtt_ms
+
+    def stats(self) -> dict:
+        """A copy of every counter (see ``COUNTERS``)."""
+        with self._counts_lock:
+            return dict(self._counts)
+
+    def count(self, key: str, n: int = 1) -> None:
+        with self._counts_lock:
+            self._counts[key] += n
+
+    def publish_frame(self, data: bytes) -> None:
+        """Offer a binary camera frame (``vr_protocol.pack_frame``); replaces any frame not yet sent."""
+        with self._publish_lock:
+            fid = self._frame[0] + 1 if self._frame else 1
+            self._frame = (fid, data)
+        self.count("frames_published")
+        self._wakeup()
+
+    def publish_status(self, status: dict) -> None:
+        """Offer a status for the page (sent at most ``status_hz`` times a second, newest only)."""
+        text = server_message("status", **status)
+        with self._publish_lock:
+            sid = self._status[0] + 1 if self._status else 1
+            self._status = (sid, text)
+        self._wakeup()
+
+    def _wakeup(self) -> None:
+        loop, wake = self._loop, self._wake
+        if loop is not None and wake is not None and self.connected:
+            try:
+                loop.call_soon_threadsafe(wake.set)
+            except RuntimeError:  # the loop closed between the check and the call: nothing to wake
+                pass
+
+    # ------------------------------------------------------------------ HTTP
+    async def _headers(self, request: web.Request, response: web.StreamResponse) -> None:
+        response.headers["Cache-Control"] = "no-store"
+        response.headers["X-Content-Type-Options"] = "nosniff"
+        host = request.host if _HOST_RE.fullmatch(request.host or "") else ""
+        sockets = f" ws://{host} wss://{host}" if host else ""
+        response.headers["Content-Security-Policy"] = (
+            f"default-src 'self'; img-src 'self' blob: data:; connect-src 'self'{sockets}; frame-ancestors 'none'"
+        )
+
+    async def _index(self, request: web.Request) -> web.StreamResponse:
+        return web.FileResponse(self.web_dir / "index.html")
+
+    def _origin_ok(self, request: web.Request) -> bool:
+        origin = request.headers.get("Origin")
+        if origin is None:  # not a browser (scripts, tests): browsers always send Origin on WebSocket requests
+            return True
+        parts = urlsplit(origin)
+        return parts.scheme in ("http", "https") and parts.netloc == request.host
+
+    def _locked_out(self, peer: str) -> bool:
+        q = self._failures.get(peer)
+        now = time.monotonic()
+        while q and now - q[0] > AUTH_WINDOW_S:
+            q.popleft()
+        return bool(q) and len(q) >= AUTH_MAX_FAILURES
+
+    def _token_ok(self, token: str | None) -> bool:
+        if not self.requires_token:
+            return True
+        if token is None:
+            return False
+        return hmac.compare_digest(_canonical_token(token).encode(), _canonical_token(self.token).encode())
+
+    # ------------------------------------------------------------------ WebSocket
+    async def _websocket(self, request: web.Request) -> web.StreamResponse:
+        if not self._origin_ok(request):
+            self.count("forbidden_origin")
+            return web.Response(status=403, text="cross-origin WebSocket refused")
+        ws = web.WebSocketResponse(max_msg_size=MAX_WS_FRAME_BYTES, compress=False, autoping=True)
+        await ws.prepare(request)
+        peer = request.remote or "?"
+        if not await self._authenticate(ws, peer):
+            return ws
+        previous, self._client = self._client, ws
+        self._client_id += 1
+        cid = self._client_id
+        self.count("connections")
+        if previous is not None and not previous.closed:
+            self.count("superseded")
+            await previous.close(code=CLOSE_SUPERSEDED, message=b"superseded by a newer connection")
+        await ws.send_str(server_message("welcome", connection=cid, config=self.config))
+        if self.on_connect is not None:
+            self._call(self.on_connect, cid)
+        sender = asyncio.create_task(self._send_loop(ws))
+        order = {"seq": -1, "t": float("-inf")}
+        try:
+            async for msg in ws:
+                if msg.type == WSMsgType.TEXT:
+                    self._handle_text(msg.data, order)
+                elif msg.type == WSMsgType.BINARY:
+                    self.count("received")
+                    self.count("malformed")
+                elif msg.type == WSMsgType.ERROR:
+                    code = getattr(ws.exception(), "code", None)
+                    self.count("oversized" if code == WSCloseCode.MESSAGE_TOO_BIG else "malformed")
+        finally:
+            sender.cancel()
+            if self._client is ws:
+                self._client = None
+                if self.on_disconnect is not None:
+                    self._call(self.on_disconnect, cid)
+        return ws
+
+    async def _authenticate(self, ws: web.WebSocketResponse, peer: str) -> bool:
+        try:
+            msg = await asyncio.wait_for(ws.receive(), self.hello_timeout)
+        except asyncio.TimeoutError:
+            self.count("unauthenticated")
+            await ws.close(code=CLOSE_HELLO_TIMEOUT, message=b"no hello")
+            return False
+        hello = None
+        if msg.type == WSMsgType.TEXT:
+            try:
+                hello = parse_client_message(msg.data)
+            except ProtocolError as e:
+                self.count(e.reason)
+        if not isinstance(hello, HelloMessage):
+            self.count("unauthenticated")
+            if not ws.closed:
+                await ws.close(code=CLOSE_UNAUTHORIZED, message=b"the first message must be a hello")
+            return False
+        if self._locked_out(peer):
+            self.count("locked_out")
+            await ws.send_str(server_message("error", reason="too many wrong tokens: wait a minute"))
+            await ws.close(code=CLOSE_LOCKED_OUT, message=b"locked out")
+            return False
+        if not self._token_ok(hello.token):
+            self.count("auth_failed")
+            self._failures.setdefault(peer, collections.deque()).append(time.monotonic())
+            await asyncio.sleep(self.auth_failure_delay)  # a wrong guess costs time
+            await ws.send_str(server_message("error", reason="wrong or missing pairing token"))
+            await ws.close(code=CLOSE_UNAUTHORIZED, message=b"wrong token")
+            return False
+        return True
+
+    def _handle_text(self, data: str, order: dict) -> None:
+        self.count("received")
+        try:
+            msg = parse_client_message(data)
+        except ProtocolError as e:
+            self.count(e.reason)
+            return
+        if isinstance(msg, PoseMessage):
+            if msg.seq <= order["seq"] or msg.t < order["t"]:
+                self.count("out_of_order")
+                return
+            order["seq"], order["t"] = msg.seq, msg.t
+            self.count("accepted")
+            self._last_message_time = time.monotonic()
+            if self.on_pose is not None:
+                self._call(self.on_pose, msg, self._last_message_time)
+        elif isinstance(msg, PongMessage):
+            sent = self._pings.pop(msg.id, None)
+            if sent is not None:
+                self._rtt_ms = (time.monotonic() - sent) * 1000.0
+        else:  # a second hello
+            self.count("malformed")
+
+    def _call(self, fn, *args) -> None:
+        try:
+            fn(*args)
+        except Exception:
+            self.count("handler_errors")
+            LOG.exception("VR handler raised; the message was dropped")
+
+    async def _send_loop(self, ws: web.WebSocketResponse) -> None:
+        """Send the newest frame and status whenever there is one, and a ping every second."""
+        last_frame = 0  # the newest frame goes out at once
+        last_status, last_status_time = 0, 0.0
+        next_ping, ping_id = time.monotonic(), 0
+        try:
+            while not ws.closed:
+                try:
+                    await asyncio.wait_for(self._wake.wait(), timeout=0.1)
+                except asyncio.TimeoutError:
+                    pass
+                self._wake.clear()
+                with self._publish_lock:
+                    frame, status = self._frame, self._status
+                if frame is not None and frame[0] != last_frame:
+                    if last_frame and frame[0] > last_frame + 1:
+                        self.count("frames_skipped", frame[0] - last_frame - 1)
+                    last_frame = frame[0]
+                    await ws.send_bytes(frame[1])
+                    self.count("frames_sent")
+                now = time.monotonic()
+                if status is not None and status[0] != last_status and now - last_status_time >= self.status_interval:
+                    last_status, last_status_time = status[0], now
+                    await ws.send_str(status[1])
+                    self.count("status_sent")
+                if now >= next_ping:
+                    ping_id += 1
+                    self._pings = {ping_id: now}
+                    next_ping = now + PING_INTERVAL_S
+                    await ws.send_str(server_message("ping", id=ping_id))
+        except (ConnectionError, RuntimeError, asyncio.CancelledError):
+            return  # the connection went away; the receive side cleans up
