@@ -24,7 +24,7 @@ def controller(**overrides):
     c = {
         "p": [0.2, 1.1, -0.3],
         "q": [0, 0, 0, 1],
-        "tracked": True,
+        "emulated": False,
         "trigger": 0.0,
         "squeeze": 1.0,
         "stick": [0.0, 0.0],
@@ -68,8 +68,8 @@ def test_a_pose_message_parses_into_typed_fields():
 
 def test_quaternions_are_normalised_and_untracked_controllers_have_no_pose():
     msg = parse_client_message(pose(right=controller(q=[0, 0, 0, 1.2])))
-    assert np.linalg.norm(msg.right.pose.q) == pytest.approx(1.0)
-    assert parse_client_message(pose(right=controller(tracked=False))).right.pose is None
+    assert np.linalg.norm(msg.right.pose.q) == pytest.approx(1.0) and not msg.right.emulated
+    assert parse_client_message(pose(right=controller(emulated=True))).right.emulated
     assert parse_client_message(pose(right=controller(p=None, q=None))).right.pose is None
 
 
@@ -97,6 +97,7 @@ def test_hello_and_pong():
         pose(right=controller(squeeze=True)),
         pose(right=controller(stick=[0, 2])),
         pose(right=controller(a="yes")),
+        pose(right=controller(emulated=1)),
         pose(right=[1, 2, 3]),
         pose(t=float("nan")),
         pose().replace("1234.5", "Infinity"),
@@ -130,7 +131,9 @@ def test_frame_header_round_trip():
 
 
 def state(**kw):
-    base = dict(pose=None, trigger=0.0, squeeze=0.0, stick=(0.0, 0.0), stick_press=False, a=False, b=False)
+    base = dict(
+        pose=None, emulated=False, trigger=0.0, squeeze=0.0, stick=(0.0, 0.0), stick_press=False, a=False, b=False
+    )
     base.update(kw)
     return ControllerState(**base)
 

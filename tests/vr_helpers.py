@@ -17,12 +17,12 @@ IDENTITY = (0.0, 0.0, 0.0, 1.0)
 
 
 def controller(
-    p=HAND, q=IDENTITY, squeeze=0.0, trigger=0.0, stick=(0.0, 0.0), stick_press=False, a=False, b=False, tracked=True
+    p=HAND, q=IDENTITY, squeeze=0.0, trigger=0.0, stick=(0.0, 0.0), stick_press=False, a=False, b=False, emulated=False
 ) -> dict:
     return {
         "p": list(p),
         "q": list(q),
-        "tracked": tracked,
+        "emulated": emulated,
         "trigger": trigger,
         "squeeze": squeeze,
         "stick": list(stick),

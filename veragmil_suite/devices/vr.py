@@ -73,6 +73,9 @@ class VRDevice(Device):
         stale_timeout (float): seconds without a message after which the arm holds and the clutch releases
         max_linear_speed, max_angular_speed (float): velocity clamp on the commanded pose (m/s, rad/s)
         squeeze_threshold (float): squeeze value that engages
+        allow_emulated_position (bool): drive with controller positions the runtime only estimates (WebXR's
+            emulatedPosition: the controller left the cameras' view; emulators mark every pose so); off by
+            default, such poses release the clutch
         filter_params (dict): keyword arguments of ``vr_filters.PoseFilter``
         on_episode_command (callable): called with "keep", "discard" or "reset" when the operator ends an episode
         verbose (bool): print the controls and the address to open
@@ -105,6 +108,7 @@ class VRDevice(Device):
         max_linear_speed: float = 0.5,
         max_angular_speed: float = 3.0,
         squeeze_threshold: float = 0.5,
+        allow_emulated_position: bool = False,
         filter_params: dict | None = None,
         on_episode_command: Callable[[str], None] | None = None,
         verbose: bool = True,
@@ -124,6 +128,7 @@ class VRDevice(Device):
         self.rot_sensitivity = rot_sensitivity
         self.stale_timeout = stale_timeout
         self.squeeze_threshold = squeeze_threshold
+        self.allow_emulated_position = allow_emulated_position
         self.on_episode_command = on_episode_command
         self.camera_name = camera_name or self._default_camera(env)
         self.recording = False
@@ -394,7 +399,8 @@ class VRDevice(Device):
         t = msg.t / 1000.0
         ctrl = msg.right if self.hand == "right" else msg.left
         with self._lock:
-            if ctrl is not None and ctrl.pose is not None and msg.visible:
+            tracked = ctrl is not None and ctrl.pose is not None and (self.allow_emulated_position or not ctrl.emulated)
+            if tracked and msg.visible:
                 p, q, _ = self._filter(ctrl.pose.p, ctrl.pose.q, t)
                 self._ctrl = Pose(p, q)
             else:
@@ -475,6 +481,7 @@ class VRDevice(Device):
         c = self._clutch
         parts = [
             "CONNECTED" if self.server.connected else "waiting for the headset",
+            *(["controller not tracked"] if self.server.connected and self._ctrl is None else []),
             "ENGAGED" if c.engaged else ("released (stale)" if self._stale and self.server.connected else "released"),
             "REC" if self.recording else "not recording",
             f"scale {c.scale:.2f}" + (" precision" if c.precision else ""),

@@ -12,14 +12,15 @@ Everything the page sends is JSON text, one object per WebSocket message, at mos
      "head":  {"p": [x, y, z], "q": [x, y, z, w]} | null,
      "right": CONTROLLER | null, "left": CONTROLLER | null}
 
-    CONTROLLER = {"p": [x, y, z], "q": [x, y, z, w], "tracked": true,
+    CONTROLLER = {"p": [x, y, z] | null, "q": [x, y, z, w] | null, "emulated": false,
                   "trigger": 0..1, "squeeze": 0..1, "stick": [x, y], "stick_press": bool, "a": bool, "b": bool}
 
   Poses are grip poses in the XR reference space (metres; x right, y up, z toward the user). ``seq`` is a
   per-connection counter that must increase; ``t`` is the XR frame time (ms, the page's clock) and must not
   decrease. ``stick`` is [right, forward] in [-1, 1] (the page flips the gamepad's y). ``a``/``b`` are A/B on
-  the right controller and X/Y on the left. ``tracked`` false (or a null pose) means the controller is not
-  tracked; ``visible`` false means the headset hides the page (asleep, system menu).
+  the right controller and X/Y on the left. A null pose means the controller is not tracked; ``emulated`` is
+  WebXR's ``emulatedPosition`` (the position is estimated, not tracked: controller out of the cameras' view, or
+  an emulator). ``visible`` false means the headset hides the page (asleep, system menu).
 
 ``pong``: ``{"v": 1, "type": "pong", "id": <id of the server's ping>}``.
 
@@ -70,6 +71,7 @@ class TrackedPose:
 @dataclass(frozen=True)
 class ControllerState:
     pose: TrackedPose | None  # None when not tracked
+    emulated: bool  # the runtime estimates the position rather than tracking it
     trigger: float
     squeeze: float
     stick: tuple[float, float]
@@ -149,10 +151,10 @@ def _controller(v, key: str) -> ControllerState | None:
     if not isinstance(v, dict):
         raise _malformed(f"{key} must be an object or null")
     pose = _pose(v, key) if v.get("p") is not None else None
-    tracked = _bool(v, "tracked") if "tracked" in v else pose is not None
     stick = _vector(v.get("stick"), 2, f"{key}.stick", 1.01)
     return ControllerState(
-        pose=pose if tracked else None,
+        pose=pose,
+        emulated=_bool(v, "emulated") if "emulated" in v else False,
         trigger=_number(v, "trigger", 0.0, 1.0),
         squeeze=_number(v, "squeeze", 0.0, 1.0),
         stick=(float(stick[0]), float(stick[1])),

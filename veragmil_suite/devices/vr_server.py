@@ -235,6 +235,7 @@ class VRServer:
         app = web.Application(client_max_size=MAX_MESSAGE_BYTES)
         app.router.add_get("/", self._index)
         app.router.add_get("/ws", self._websocket)
+        app.router.add_get("/favicon.ico", self._no_icon)
         app.router.add_static("/static/", self.web_dir, show_index=False, follow_symlinks=False)
         app.on_response_prepare.append(self._headers)
         self._runner = web.AppRunner(app, access_log=None, handle_signals=False)
@@ -320,6 +321,9 @@ class VRServer:
         response.headers["Content-Security-Policy"] = (
             f"default-src 'self'; img-src 'self' blob: data:; connect-src 'self'{sockets}; frame-ancestors 'none'"
         )
+
+    async def _no_icon(self, request: web.Request) -> web.StreamResponse:
+        return web.Response(status=204)  # browsers ask; an error would only clutter the page's console
 
     async def _index(self, request: web.Request) -> web.StreamResponse:
         return web.FileResponse(self.web_dir / "index.html")

@@ -21,7 +21,7 @@ function controllerOf(frame, refSpace, source) {
   const state = {
     p: null,
     q: null,
-    tracked: !!pose && !pose.emulatedPosition,
+    emulated: !!pose && pose.emulatedPosition,
     trigger: clamp(button(0).value, 0, 1),
     squeeze: clamp(button(1).value, 0, 1),
     stick: [clamp(axis(2), -1, 1), clamp(-axis(3), -1, 1)],

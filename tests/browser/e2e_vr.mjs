@@ -1,0 +1,85 @@
+// End-to-end drive of the VR page in headless Chromium with Meta's WebXR emulator (iwer), for test_vr_browser.py.
+//
+//   node e2e_vr.mjs <page url> <moves json>
+//
+// Opens our real page served by our server, lets it connect and show camera frames, enters the immersive
+// session, then for each move squeezes the emulated right controller, moves it by [dx, dy, dz] metres (XR frame)
+// over one second, holds, releases. The page itself knows nothing of iwer: the emulator is injected before any
+// page script runs and installed over Chromium's own navigator.xr (forceInstall). Prints one JSON line: the page's
+// counters, per-move timings, and console errors.
+
+import fs from "node:fs";
+import { createRequire } from "node:module";
+import os from "node:os";
+import path from "node:path";
+import { chromium } from "playwright-core";
+
+const require = createRequire(import.meta.url);
+const [url, movesJson] = process.argv.slice(2);
+const moves = JSON.parse(movesJson || "[[0.1, 0, 0]]");
+const FLAGS = [
+  "--headless",
+  "--no-sandbox",
+  "--disable-gpu",
+  "--disable-quic",
+  "--no-first-run",
+  "--disable-background-networking",
+  "--disable-component-update",
+  "--disable-sync",
+];
+
+const userDataDir = fs.mkdtempSync(path.join(os.tmpdir(), "vr-e2e-chromium-"));
+const result = { moves: [], errors: [] };
+const context = await chromium.launchPersistentContext(userDataDir, {
+  executablePath: "/usr/bin/chromium",
+  headless: true,
+  args: FLAGS,
+  viewport: { width: 800, height: 450 },
+});
+try {
+  const page = context.pages()[0] || (await context.newPage());
+  page.on("pageerror", (e) => result.errors.push(String(e)));
+  page.on("console", (m) => {
+    if (m.type() === "error") result.errors.push(m.text());
+  });
+  await page.addInitScript({ path: require.resolve("iwer/build/iwer.min.js") });
+  await page.addInitScript(() => {
+    const device = new IWER.XRDevice(IWER.metaQuest3);
+    device.installRuntime({ forceInstall: true });
+    window.__emulatedHeadset = device;
+  });
+  await page.goto(url);
+  const stats = () => window.vrTeleop.stats;
+  await page.waitForFunction(() => window.vrTeleop && window.vrTeleop.stats.connected, null, { timeout: 30000 });
+  await page.waitForFunction(() => window.vrTeleop.stats.framesDecoded >= 3, null, { timeout: 30000 });
+  result.framesBeforeXR = await page.evaluate(() => window.vrTeleop.stats.framesDecoded);
+  await page.waitForFunction(() => !document.getElementById("enter-vr").disabled, null, { timeout: 10000 });
+  await page.click("#enter-vr");
+  await page.waitForFunction(() => window.vrTeleop.stats.inXR && window.vrTeleop.stats.xrFrames > 20, null, {
+    timeout: 30000,
+  });
+  for (const move of moves) {
+    const t0 = Date.now();
+    await page.evaluate(() => window.__emulatedHeadset.controllers.right.updateButtonValue("squeeze", 1));
+    await page.waitForFunction(() => window.vrTeleop.stats.lastStatus && window.vrTeleop.stats.lastStatus.engaged,
+      null, { timeout: 10000 });
+    await page.evaluate(async (d) => {
+      const c = window.__emulatedHeadset.controllers.right;
+      const start = [c.position.x, c.position.y, c.position.z];
+      for (let k = 1; k <= 50; k++) {
+        c.position.set(start[0] + (d[0] * k) / 50, start[1] + (d[1] * k) / 50, start[2] + (d[2] * k) / 50);
+        await new Promise((r) => setTimeout(r, 20));
+      }
+    }, move);
+    await page.waitForTimeout(1500); // hold: the arm settles
+    await page.evaluate(() => window.__emulatedHeadset.controllers.right.updateButtonValue("squeeze", 0));
+    await page.waitForFunction(() => !window.vrTeleop.stats.lastStatus.engaged, null, { timeout: 10000 });
+    await page.waitForTimeout(500);
+    result.moves.push({ move, ms: Date.now() - t0 });
+  }
+  result.stats = await page.evaluate(stats);
+} finally {
+  await context.close();
+  fs.rmSync(userDataDir, { recursive: true, force: true });
+}
+console.log(JSON.stringify(result));
