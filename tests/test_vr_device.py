@@ -291,3 +291,49 @@ def test_streamed_jpeg_shows_the_scene_and_its_depth(session):
     table_depth = (env.table_offset[2] - pos[2]) / rays[..., 2]
     on_table = np.abs(depth - table_depth) < 0.005
     assert on_table.mean() > 0.5
+
+
+def test_recenter_and_scale_buttons(session):
+    """The operator turns 90 degrees left, presses Y (recenter) and flicks the stick up (scale x1.25): a hand
+    stroke along the new facing drives the end-effector along the camera's forward, 1.25 times as far."""
+    env, device, client = session
+    turned = np.array([0.0, np.sin(np.pi / 4), 0.0, np.cos(np.pi / 4)])  # head yawed +90 deg about XR up
+    forward = F.quat_to_mat(turned) @ [0, 0, -1]  # now XR -x
+
+    def script(t):
+        left = controller(b=0.3 < t < 0.4)  # Y: recenter
+        right = controller(stick=(0.0, 1.0 if 0.5 < t < 0.6 else 0.0))  # flick up: scale up
+        if t > 0.8:
+            right = controller(p=np.add(HAND, forward * 0.04 * min(t - 1.0, 1.0) if t > 1.0 else 0), squeeze=1.0)
+        return dict(left=left, right=right, head_q=turned)
+
+    p_start, _ = eef_pose(env, device)
+    log = lockstep(env, device, client, script, duration=2.5)
+    assert log[-1]["engaged"] and device.clutch.pos_scale == pytest.approx(1.25)
+    camera_forward = np.array([np.cos(device.clutch.camera_yaw), np.sin(device.clutch.camera_yaw), 0.0])
+    np.testing.assert_allclose(device.target_pose.p - p_start, 1.25 * 0.04 * camera_forward, atol=1e-4)
+    assert camera_forward[0] < -0.99  # agentview looks back at the robot: forward is -x
+    assert client.statuses[-1]["recenter"] >= 1 and client.statuses[-1]["scale"] == pytest.approx(1.25)
+
+
+def test_vr_drives_the_spoon_in_scoop_granular():
+    """Our task: XArm7 with the spoon (6-D actions, no gripper), the overhead camera streamed by default."""
+    from helpers_env import make_env
+
+    env = make_env("rice", robot="XArm7", initialization_noise=None)
+    env.reset()
+    device = VRDevice(env, port=0, stale_timeout=5.0, verbose=False)
+    client = Client(device.url).connect()
+    try:
+        assert device.camera_name == "overhead" and env.action_dim == 6
+        device.start_control()
+        stroke = squeeze_after(0.2, lambda t: (np.array([0.03, 0.04, 0.0]) * min(t, 1.0), np.array([0, 0, 0, 1.0])))
+        log = lockstep(env, device, client, stroke, duration=2.5)
+        moved = log[-1]["p"] - log[0]["p"]
+        np.testing.assert_allclose(moved, device.clutch.map @ [0.03, 0.04, 0.0], atol=0.01)
+        assert moved[2] == pytest.approx(0.04, abs=0.01)  # hand up, spoon up
+        assert client.frames and client.frames[-1][1]["panels"] == 2
+    finally:
+        client.close()
+        device.close()
+        env.close()
