@@ -91,7 +91,7 @@ PHASES = (
     Phase("approach", speed=0.10, turn_speed=0.6, pos_tol=0.006, rot_tol=0.05, max_time_s=3.0),
     Phase("dip", speed=0.04, turn_speed=0.6, pos_tol=0.004, rot_tol=0.05, max_time_s=2.0),
     Phase("drag", speed=0.03, turn_speed=0.6, pos_tol=0.004, rot_tol=0.05, max_time_s=2.5),
-    Phase("level", speed=0.02, turn_speed=0.3, pos_tol=0.004, rot_tol=0.04, max_time_s=4.0),
+    Phase("level", speed=0.02, turn_speed=0.4, pos_tol=0.004, rot_tol=0.04, max_time_s=4.0),
     Phase("lift", speed=0.03, turn_speed=0.3, pos_tol=0.006, rot_tol=0.05, max_time_s=3.0),
     Phase("carry", speed=0.06, turn_speed=0.3, pos_tol=0.008, rot_tol=0.05, max_time_s=5.0),
     Phase("hold", speed=0.03, turn_speed=0.2, pos_tol=0.0, rot_tol=0.0, max_time_s=np.inf),
@@ -104,6 +104,27 @@ INTEGRAL_GAIN = 1.5
 INTEGRAL_LIMIT = np.array([0.015, 0.015, 0.015, 0.15, 0.15, 0.15])
 INTEGRAL_LEAK = 0.97
 PHASE_NAMES = tuple(p.name for p in PHASES)
+
+
+@dataclass(frozen=True)
+class ScoopPlan:
+    """Where the phases aim the spoon's rim centre, relative to the bowl (m): x from the rim's centre (+x away from
+    the robot), z above the bowl's floor (approach: above the rim)."""
+
+    approach_dz: float = 0.01
+    dip_dx: float = -0.005  # from the floor's edge on the near side
+    dip_dz: float = 0.02
+    drag_dx: float = -0.005
+    drag_dz: float = 0.017
+    # turning level while moving on scoops the pile into the spoon; large pieces (pasta) would be pushed over the far
+    # rim, so the spoon reaches less far the larger the food's pieces (by this many piece radii)
+    level_dx: float = 0.012
+    level_dx_per_radius: float = -1.2
+    level_dz: float = 0.02
+    lift_dz: float = 0.04  # above the rim
+
+
+SCOOP_PLAN = ScoopPlan()
 
 
 def get_profile(profile: str | OperatorProfile) -> OperatorProfile:
@@ -146,6 +167,8 @@ class ScriptedScooper:
         # OSC re-anchors the goal at the achieved pose every step, so the spoon settles at the speed where the
         # stiffness pull kp * offset equals the damping kd * speed: an offset of speed * kd / kp gives that speed
         self.speed_to_offset = np.asarray(self.controller.kd, dtype=float) / np.asarray(self.controller.kp, dtype=float)
+        # the size of the food's pieces, as an operator sees it: how far a scoop may push them
+        self.piece_radius = float(np.max(env.grain_pile.radii))
         self.reset()
 
     # -------------------------------------------------------------------------------------------------------- #
@@ -236,21 +259,22 @@ class ScriptedScooper:
         floor_z = rim[2] - shape.depth
         floor_r = min(shape.floor_semi_axes)
         rim_r = min(shape.rim_semi_axes)
-        j = self.jitter
+        plan, j = SCOOP_PLAN, self.jitter
         y = rim[1] + j["y"]
         if name == "approach":
-            return np.array([rim[0] - 0.5 * rim_r, y, rim[2] + 0.01]), PRE_SCOOP_EEF_ROT
+            return np.array([rim[0] - 0.5 * rim_r, y, rim[2] + plan.approach_dz]), PRE_SCOOP_EEF_ROT
         if name == "dip":
-            return np.array([rim[0] - floor_r - 0.005 + j["dip_x"], y, floor_z + 0.02 + j["dip_z"]]), PRE_SCOOP_EEF_ROT
+            x = rim[0] - floor_r + plan.dip_dx + j["dip_x"]
+            return np.array([x, y, floor_z + plan.dip_dz + j["dip_z"]]), PRE_SCOOP_EEF_ROT
         if name == "drag":
-            return np.array([rim[0] - 0.005 + j["drag_x"], y, floor_z + 0.017]), PRE_SCOOP_EEF_ROT
+            return np.array([rim[0] + plan.drag_dx + j["drag_x"], y, floor_z + plan.drag_dz]), PRE_SCOOP_EEF_ROT
+        level_x = rim[0] + plan.level_dx + plan.level_dx_per_radius * self.piece_radius + j["drag_x"]
         if name == "level":
-            # turning level while easing back: the tip comes up through the pile instead of pushing it over the rim
-            return np.array([rim[0] - 0.012 + j["drag_x"], y, floor_z + 0.02]), POST_SCOOP_EEF_ROT
+            return np.array([level_x, y, floor_z + plan.level_dz]), POST_SCOOP_EEF_ROT
         desired = np.asarray(obs["desired_pose"], dtype=float)
         desired_rot = T.quat2mat(desired[3:7])
         if name == "lift":
-            return np.array([rim[0], y, rim[2] + 0.04]), TIP_BACK @ desired_rot
+            return np.array([level_x, y, rim[2] + plan.lift_dz]), TIP_BACK @ desired_rot
         if name == "carry":
             return desired[:3].copy(), TIP_BACK @ desired_rot
         return desired[:3].copy(), desired_rot

@@ -1,0 +1,264 @@
+"""The demonstration file: robomimic's schema key by key, exact replay, append, crash safety, clear errors."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import xml.etree.ElementTree as ET
+
+import h5py
+import numpy as np
+import pytest
+from recording_helpers import CAMERA_SIZE, make_env, record_file, tiny_env_kwargs
+
+from veragmil_suite.recording import (
+    DatasetError,
+    DemoWriter,
+    env_meta,
+    observe,
+    open_dataset,
+    provenance,
+    reset_to_demo,
+    robomimic_obs,
+)
+from veragmil_suite.scripts.dataset_tools import info_main, split_main
+
+ROBOT_KEYS = {
+    "robot0_joint_pos": (7,),
+    "robot0_joint_pos_cos": (7,),
+    "robot0_joint_pos_sin": (7,),
+    "robot0_joint_vel": (7,),
+    "robot0_joint_acc": (7,),
+    "robot0_eef_pos": (3,),
+    "robot0_eef_quat": (4,),
+    "robot0_eef_quat_site": (4,),
+}
+OBJECT_KEYS = {"desired_pose": (7,), "bowl_pos": (3,), "spoon_to_desired_pos": (3,), "spoon_load": (2,)}
+CAMERA_KEYS = {
+    "overhead_image": ((CAMERA_SIZE, CAMERA_SIZE, 3), np.uint8),
+    "overhead_depth": ((CAMERA_SIZE, CAMERA_SIZE, 1), np.float32),
+}
+STEPS = 12
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    path = tmp_path_factory.mktemp("rec") / "demos.hdf5"
+    episodes = record_file(path, episodes=2, steps=STEPS)
+    return path, episodes
+
+
+def test_fresh_file_has_robomimics_schema_key_by_key(recorded):
+    path, episodes = recorded
+    with h5py.File(path, "r") as f:
+        assert set(f.keys()) == {"data", "mask"}
+        data = f["data"]
+        meta = json.loads(data.attrs["env_args"])
+        assert meta["env_name"] == "ScoopGranular" and meta["type"] == 1
+        assert "env_name" not in meta["env_kwargs"]
+        assert meta["env_kwargs"]["control_freq"] == 20
+        assert meta["env_kwargs"]["controller_configs"]["body_parts"]["right"]["type"] == "OSC_POSE"
+        assert meta["env_kwargs"]["food"] == "pasta"
+        for key, value in dict(device="scripted", operator="scripted-expert", food="pasta", robot="XArm7").items():
+            assert data.attrs[key] == value
+        assert data.attrs["mujoco_version"] == "3.3.7"
+        assert data.attrs["robosuite_version"] == "1.5.2"
+        for key in ("veragmil_suite_version", "robomimic_version", "date"):
+            assert data.attrs[key]
+        assert set(data.keys()) == {"demo_0", "demo_1"}
+        assert data.attrs["total"] == 2 * STEPS
+
+        for name, episode in zip(("demo_0", "demo_1"), episodes):
+            g = data[name]
+            assert set(g.keys()) == {"actions", "states", "rewards", "dones", "obs", "next_obs"}
+            assert g.attrs["num_samples"] == STEPS
+            model = ET.fromstring(g.attrs["model_file"])
+            assert model.tag == "mujoco" and model.find(".//body[@name='grain11']") is not None
+            assert g.attrs["food"] == "pasta" and g.attrs["device"] == "scripted"
+            for metric in ("success", "grains_spilled", "spilled_volume_cm3", "completion_time_s"):
+                assert metric in g.attrs
+            assert g["actions"].shape == (STEPS, 6) and g["actions"].dtype == np.float64
+            assert np.abs(g["actions"][()]).max() <= 1.0
+            assert g["states"].shape == (STEPS, episode.states.shape[1]) and g["states"].dtype == np.float64
+            assert g["rewards"].shape == (STEPS,)
+            dones = g["dones"][()]
+            assert dones.shape == (STEPS,) and dones[-1] == 1 and set(np.unique(dones)) <= {0, 1}
+            np.testing.assert_array_equal(g["actions"][()], episode.actions)
+            np.testing.assert_array_equal(g["states"][()], episode.states)
+            for group in ("obs", "next_obs"):
+                keys = set(g[group].keys())
+                assert keys == set(ROBOT_KEYS) | set(OBJECT_KEYS) | set(CAMERA_KEYS) | {"object"}
+                for key, shape in {**ROBOT_KEYS, **OBJECT_KEYS}.items():
+                    assert g[group][key].shape == (STEPS, *shape), key
+                for key, (shape, dtype) in CAMERA_KEYS.items():
+                    assert g[group][key].shape == (STEPS, *shape) and g[group][key].dtype == dtype, key
+                # robomimic's "object" is robosuite's object-state: the object observables concatenated
+                parts = np.concatenate([g[group][k][()] for k in OBJECT_KEYS], axis=1)
+                np.testing.assert_array_equal(g[group]["object"][()], parts)
+            for key in g["obs"]:
+                np.testing.assert_array_equal(g["next_obs"][key][:-1], g["obs"][key][1:])
+
+        masks = {k: sorted(x.decode() for x in f["mask"][k][()]) for k in f["mask"]}
+        assert set(masks) == {"train", "valid", "pasta", "success"}
+        assert sorted(masks["train"] + masks["valid"]) == ["demo_0", "demo_1"] and masks["valid"]
+        assert masks["pasta"] == ["demo_0", "demo_1"]
+
+
+def test_each_observation_is_that_of_its_recorded_state(recorded):
+    """What robomimic's dataset_states_to_obs extracts: reset_to(state) gives back the recorded observation."""
+    path, _ = recorded
+    env = make_env(tiny_env_kwargs())
+    env.reset()
+    with open_dataset(path) as f:
+        g = f["data/demo_1"]
+        reset_to_demo(env, g.attrs["model_file"], g["states"][0])
+        for t in (0, 5, STEPS - 1):
+            env.sim.set_state_from_flattened(g["states"][t])
+            obs = robomimic_obs(env, observe(env))
+            for key in obs:
+                if key == "robot0_joint_acc":  # accelerations come from the torques applied, not from the state
+                    continue
+                np.testing.assert_array_equal(obs[key], g["obs"][key][t], err_msg=f"{key} at step {t}")
+    env.close()
+
+
+def test_recorded_demo_replays_exactly_from_its_actions(recorded):
+    path, _ = recorded
+    env = make_env(tiny_env_kwargs(cameras=()))
+    env.reset()
+    for _ in range(2):  # an env that has lived through other episodes replays just the same
+        env.step(np.full(6, 0.3))
+    with open_dataset(path) as f:
+        g = f["data/demo_0"]
+        states, actions = g["states"][()], g["actions"][()]
+        reset_to_demo(env, g.attrs["model_file"], states[0])
+        np.testing.assert_array_equal(env.sim.get_state().flatten(), states[0])
+        for t in range(1, len(actions)):
+            env.step(actions[t - 1])
+            np.testing.assert_array_equal(env.sim.get_state().flatten(), states[t], err_msg=f"state {t}")
+    env.close()
+
+
+def test_append_continues_numbering_and_drops_an_interrupted_write(tmp_path):
+    path = tmp_path / "append.hdf5"
+    record_file(path, episodes=1, steps=4)
+    with h5py.File(path, "a") as f:  # what a kill during a write leaves: an episode under its temporary name
+        f["data"].create_group("incomplete_demo_1").create_dataset("actions", data=np.zeros((2, 6)))
+    with open_dataset(path) as f:
+        assert list(f["data/demo_0/actions"].shape) == [4, 6]
+    record_file(path, episodes=2, steps=4, seed=1, operator="second-session")
+    with open_dataset(path) as f:
+        data = f["data"]
+        assert sorted(data.keys()) == ["demo_0", "demo_1", "demo_2"]
+        assert data.attrs["total"] == 12
+        assert [data[n].attrs["operator"] for n in ("demo_0", "demo_1", "demo_2")] == [
+            "scripted-expert",
+            "second-session",
+            "second-session",
+        ]
+        assert json.loads(data.attrs["operators"]) == ["scripted-expert", "second-session"]
+        assert len(json.loads(data.attrs["attempts"])) == 3
+        members = sorted(x.decode() for k in ("train", "valid") for x in f["mask"][k][()])
+        assert members == ["demo_0", "demo_1", "demo_2"]
+
+
+def test_append_refuses_another_setup(tmp_path):
+    path = tmp_path / "a.hdf5"
+    record_file(path, episodes=1, steps=3)
+    other = tiny_env_kwargs(control_freq=60)
+    with pytest.raises(DatasetError, match="control_freq"):
+        DemoWriter(path, env_meta(other), provenance("scripted", "x", "pasta", "XArm7"))
+
+
+def _robomimic_file(path, env_name):
+    with h5py.File(path, "w") as f:
+        f.create_group("data").attrs["env_args"] = json.dumps(dict(env_name=env_name, type=1, env_kwargs={}))
+
+
+def test_foreign_and_corrupt_files_give_clear_errors(tmp_path, recorded, capsys):
+    meta = env_meta(tiny_env_kwargs())
+    prov = provenance("scripted", "x", "pasta", "XArm7")
+    garbage = tmp_path / "garbage.hdf5"
+    garbage.write_bytes(b"this is not HDF5\n" * 100)
+    truncated = tmp_path / "truncated.hdf5"
+    truncated.write_bytes(recorded[0].read_bytes()[:5000])
+    bare = tmp_path / "bare.hdf5"
+    with h5py.File(bare, "w") as f:
+        f.create_dataset("x", data=[1, 2, 3])
+    lift = tmp_path / "lift.hdf5"
+    _robomimic_file(lift, "Lift")
+    foreign = tmp_path / "foreign.hdf5"
+    _robomimic_file(foreign, "ScoopGranular")  # robomimic layout, but not written by us
+    cases = [
+        (garbage, "cannot be read as HDF5"),
+        (truncated, "cannot be read as HDF5"),
+        (bare, "not a robomimic dataset"),
+        (lift, "holds demonstrations of 'Lift'"),
+    ]
+    for path, message in cases:
+        with pytest.raises(DatasetError, match=message):
+            open_dataset(path)
+        with pytest.raises(DatasetError, match=message):
+            DemoWriter(path, meta, prov)
+    with pytest.raises(DatasetError, match="not written by veragmil_suite"):
+        DemoWriter(foreign, meta, prov)
+    with pytest.raises(DatasetError, match="no such file"):
+        open_dataset(tmp_path / "missing.hdf5")
+    # a damaged demo is named
+    damaged = tmp_path / "damaged.hdf5"
+    damaged.write_bytes(recorded[0].read_bytes())
+    with h5py.File(damaged, "a") as f:
+        del f["data/demo_1/states"]
+    with pytest.raises(DatasetError, match="demo_1 is incomplete: no 'states'"):
+        open_dataset(damaged)
+    # the command-line tools say it in one line and exit 2
+    for tool in (info_main, lambda argv: split_main([*argv, "--ratio", "0.5"])):
+        assert tool([str(garbage)]) == 2
+        err = capsys.readouterr().err
+        assert "cannot be read as HDF5" in err and len(err.strip().splitlines()) == 1
+
+
+CHILD = textwrap.dedent(
+    """
+    import sys
+    sys.path.insert(0, {tests!r})
+    import numpy as np
+    from recording_helpers import make_env, record_file, tiny_env_kwargs
+    from veragmil_suite.recording import EpisodeRecorder
+
+    record_file({path!r}, episodes=2, steps=5)
+    env = make_env(tiny_env_kwargs())
+    recorder = EpisodeRecorder(env)
+    recorder.reset()
+    print("MID-EPISODE", flush=True)
+    while True:
+        recorder.step(np.zeros(6))
+    """
+)
+
+
+def test_killed_mid_episode_the_file_keeps_every_finished_episode(tmp_path):
+    path = tmp_path / "crash.hdf5"
+    code = CHILD.format(tests=os.path.dirname(__file__), path=str(path))
+    child = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        for line in child.stdout:
+            if "MID-EPISODE" in line:
+                break
+        else:
+            pytest.fail("the child process died before its third episode")
+        os.kill(child.pid, signal.SIGKILL)
+        child.wait(timeout=30)
+    finally:
+        if child.poll() is None:
+            child.kill()
+    assert child.returncode == -signal.SIGKILL
+    with open_dataset(path) as f:
+        data = f["data"]
+        assert sorted(data.keys()) == ["demo_0", "demo_1"]
+        assert data.attrs["total"] == 10
+        for name in data:
+            assert data[name]["states"][()].shape[0] == 5
+            assert data[name]["obs/overhead_image"][()].shape == (5, CAMERA_SIZE, CAMERA_SIZE, 3)

@@ -1,0 +1,131 @@
+"""
+Measure the scripted expert: success, spillage and completion time per food, over seeded episodes run exactly as
+veragmil-collect records them (restart from reset_to, observations of the recorded states), nothing written.
+
+    python -m veragmil_suite.scripts.measure_expert --foods rice buckwheat barley pasta --episodes 10 --workers 2
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+
+
+def run_expert_episode(
+    food: str, seed: int, profile: str = "expert", success_hold_s: float = 1.0, env_kwargs: dict | None = None
+) -> dict:
+    """One scripted episode of ``food`` with env and expert seeded by ``seed``; returns its metrics."""
+    os.environ.setdefault("MUJOCO_GL", "osmesa")
+    import robosuite
+
+    import veragmil_suite  # noqa: F401
+    from veragmil_suite.expert import ScriptedScooper
+    from veragmil_suite.recording import EpisodeRecorder, episode_metrics
+
+    kwargs = dict(
+        robots="XArm7", food=food, has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False, seed=seed
+    )
+    kwargs.update(env_kwargs or {})
+    env = robosuite.make("ScoopGranular", **kwargs)
+    expert = ScriptedScooper(env, profile, seed=seed)
+    recorder = EpisodeRecorder(env)
+    start = time.perf_counter()
+    obs = recorder.reset()
+    hold = int(round(success_hold_s * env.control_freq))
+    streak, reason, info, peak = 0, "horizon", {}, 0
+    while True:
+        if expert.done:
+            reason = "gave up"
+            break
+        obs, _, done, info = recorder.step(expert.act(obs))
+        peak = max(peak, info["grains_in_spoon"])
+        streak = streak + 1 if info["success"] else 0
+        if info["physics_error"]:
+            reason = "physics"
+            break
+        if streak >= hold:
+            reason = "success"
+            break
+        if done:
+            break
+    env.close()
+    out = episode_metrics(info)
+    out.update(
+        food=food,
+        seed=seed,
+        profile=profile,
+        steps=recorder.num_steps,
+        end_reason=reason,
+        peak_grains_in_spoon=peak,
+        wall_s=time.perf_counter() - start,
+    )
+    return out
+
+
+def summarize(results: list[dict]) -> dict:
+    """Per food: success rate, spilled pieces and volume, spill fraction, completion time (successes)."""
+    out = {}
+    for food in dict.fromkeys(r["food"] for r in results):
+        rows = [r for r in results if r["food"] == food]
+        ok = [r for r in rows if r["success"]]
+        out[food] = dict(
+            episodes=len(rows),
+            success_rate=len(ok) / len(rows),
+            mean_grains_spilled=float(np.mean([r["grains_spilled"] for r in rows])),
+            mean_spilled_cm3=float(np.mean([r["spilled_volume_cm3"] for r in rows])),
+            mean_spill_fraction=float(np.mean([r["spill_fraction"] for r in rows])),
+            mean_grains_in_spoon=float(np.mean([r["grains_in_spoon"] for r in rows])),
+            mean_completion_time_s=float(np.mean([r["completion_time_s"] for r in ok])) if ok else None,
+            failures={r["seed"]: r["end_reason"] for r in rows if not r["success"]},
+        )
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    from veragmil_suite.expert import PROFILES
+    from veragmil_suite.foods import TRAINING_FOODS
+
+    p = argparse.ArgumentParser(prog="python -m veragmil_suite.scripts.measure_expert", description=__doc__)
+    p.add_argument("--foods", nargs="+", default=list(TRAINING_FOODS))
+    p.add_argument("--episodes", type=int, default=10, help="episodes per food (seeds first-seed...)")
+    p.add_argument("--first-seed", type=int, default=0)
+    p.add_argument("--profile", choices=sorted(PROFILES), default="expert")
+    p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    p.add_argument("--json", default=None, help="also write every episode and the summary to this file")
+    args = p.parse_args(argv)
+    jobs = [(f, s, args.profile) for s in range(args.first_seed, args.first_seed + args.episodes) for f in args.foods]
+    results = []
+    with ProcessPoolExecutor(max_workers=args.workers) as pool:
+        for r in pool.map(run_expert_episode, *zip(*jobs)):
+            results.append(r)
+            print(
+                f"{r['food']:<10} seed {r['seed']:<3} {'SUCCESS' if r['success'] else 'failure':<8} "
+                f"{r['end_reason']:<8} {r['steps']:>4} steps  in spoon {r['grains_in_spoon']:>3} "
+                f"(peak {r['peak_grains_in_spoon']})  spilled {r['grains_spilled']} ({100 * r['spill_fraction']:.1f}%)"
+                f"  time {r['completion_time_s']:.2f} s",
+                flush=True,
+            )
+    summary = summarize(results)
+    print(f"\nprofile {args.profile}, {args.episodes} episodes per food")
+    print("food        success  spilled(pieces)  spilled(cm3)  spill%  in spoon  time(s)")
+    for food, s in summary.items():
+        t = "n/a" if s["mean_completion_time_s"] is None else f"{s['mean_completion_time_s']:.2f}"
+        print(
+            f"{food:<10} {100 * s['success_rate']:>6.0f}%  {s['mean_grains_spilled']:>15.2f}"
+            f"  {s['mean_spilled_cm3']:>12.3f}"
+            f"  {100 * s['mean_spill_fraction']:>5.1f}  {s['mean_grains_in_spoon']:>8.1f}  {t:>7}"
+        )
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(dict(profile=args.profile, episodes=results, summary=summary), f, indent=2)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
