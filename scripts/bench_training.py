@@ -2,8 +2,9 @@
 Training throughput of robomimic's BC, BC-RNN and BCQ with our configs: gradient steps and samples per second.
 
 Runs robomimic's own training epoch (data loading, batch processing, forward and backward pass) on a dataset of
-ScoopGranular episodes, with the configs' own batch sizes and networks and robomimic's 2 torch threads. Without
---dataset, a small random-action dataset (low-dim plus 84x84 overhead RGB-D) is recorded first.
+ScoopGranular episodes, with the configs' own batch sizes and networks, for 1 and 2 torch threads (robomimic's
+train.py uses 2; set VERAGMIL_TORCH_THREADS for veragmil-train). Without --dataset, a small random-action dataset
+(low-dim plus 84x84 overhead RGB-D) is recorded first.
 
     python scripts/bench_training.py                       # bc, bc_rnn, bcq, bc_image
     python scripts/bench_training.py --algos bc_rnn_image --image-steps 2
@@ -75,7 +76,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--dataset", default=None, help="robomimic HDF5 with the configs' observation keys")
     parser.add_argument("--steps", type=int, default=30, help="timed gradient steps, low-dim configs")
     parser.add_argument("--image-steps", type=int, default=3, help="timed gradient steps, image configs")
-    parser.add_argument("--threads", type=int, default=2, help="torch threads (robomimic's train.py uses 2)")
+    parser.add_argument(
+        "--threads", type=int, nargs="+", default=[1, 2], help="torch thread counts (robomimic's train.py uses 2)"
+    )
     args = parser.parse_args(argv)
 
     from veragmil_suite import robomimic_compat
@@ -83,7 +86,6 @@ def main(argv: list[str] | None = None) -> None:
     robomimic_compat.install()
     import torch
 
-    torch.set_num_threads(args.threads)
     dataset = args.dataset
     if dataset is None:
         sys.path.insert(0, str(ROOT / "tests"))
@@ -99,19 +101,21 @@ def main(argv: list[str] | None = None) -> None:
     rows = []
     for name in args.algos:
         steps = args.image_steps if "image" in name or "rgbd" in name else args.steps
-        rows.append(bench_algo(name, dataset, steps))
-        print(f"{name}: {rows[-1]['samples_per_s']:.0f} samples/s", flush=True)
+        for threads in args.threads:
+            torch.set_num_threads(threads)
+            rows.append(dict(bench_algo(name, dataset, steps), threads=threads))
+            print(f"{name}, {threads} threads: {rows[-1]['samples_per_s']:.0f} samples/s", flush=True)
 
     print(
         f"\ntraining throughput, CPU ({os.cpu_count()} cores, load average {load_before:.1f} -> "
-        f"{os.getloadavg()[0]:.1f}), {torch.get_num_threads()} torch threads, robomimic {_version('robomimic')}"
+        f"{os.getloadavg()[0]:.1f}), robomimic {_version('robomimic')}"
     )
-    print("| config | batch | seq | gradient steps/s | samples/s | frames/s |")
-    print("|---|---|---|---|---|---|")
+    print("| config | torch threads | batch | seq | gradient steps/s | samples/s | frames/s |")
+    print("|---|---|---|---|---|---|---|")
     for r in rows:
         print(
-            f"| {r['config']} | {r['batch']} | {r['seq']} | {r['steps_per_s']:.2f} | {r['samples_per_s']:.0f} | "
-            f"{r['frames_per_s']:.0f} |"
+            f"| {r['config']} | {r['threads']} | {r['batch']} | {r['seq']} | {r['steps_per_s']:.2f} | "
+            f"{r['samples_per_s']:.0f} | {r['frames_per_s']:.0f} |"
         )
 
 

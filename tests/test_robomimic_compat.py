@@ -236,6 +236,28 @@ def test_train_script_records_errors_and_keeps_the_last_validation_batch():
         module.DataLoader(Split(3, "train"), batch_size=4, drop_last=True)
 
 
+def test_torch_threads_of_a_training_run_follow_the_environment(monkeypatch):
+    import torch
+
+    module = types.ModuleType("fake_train")
+    seen = []
+
+    def train(config, device):
+        torch.set_num_threads(2)  # what robomimic's train() does
+        seen.append(torch.get_num_threads())
+
+    module.train = train
+    before, set_num_threads = torch.get_num_threads(), torch.set_num_threads
+    monkeypatch.setenv("VERAGMIL_TORCH_THREADS", "1")
+    robomimic_compat.prepare_train_script(module)
+    module.train(_config("runs"), device=None)
+    monkeypatch.delenv("VERAGMIL_TORCH_THREADS")
+    robomimic_compat.prepare_train_script(module)
+    module.train(_config("runs"), device=None)
+    assert seen == [1, 2] and torch.set_num_threads is set_num_threads
+    torch.set_num_threads(before)
+
+
 def test_no_prompts_turns_input_into_an_error():
     saved = builtins.input
     with robomimic_compat.no_prompts():

@@ -44,6 +44,8 @@ robomimic's train.py:
     - the validation loader dropped its last batch, so a validation split smaller than a batch gave no batch at
       all and the run failed: validation keeps every sample. A training split smaller than one batch fails with
       a clear message instead of a bare StopIteration.
+    - the torch thread count is fixed at 2: with 2 cores and any other process running, OpenMP threads stall (1
+      thread trained BC 5-10x faster here under load). $VERAGMIL_TORCH_THREADS sets it (unset: robomimic's 2).
     - every training error was caught and the process still exited 0: ``prepare_train_script`` records it so the
       entry point exits non-zero.
     - robomimic's scripts cannot see a plugin environment (no import hook): importing this module imports the
@@ -376,20 +378,30 @@ def prepare_train_script(module: types.ModuleType) -> TrainOutcome:
     """
     Patches the namespace of robomimic.scripts.train (imported, not yet run) for one run.
 
-    Its train() is wrapped to record any error (its main() prints the error and returns normally), and its
-    DataLoader keeps the last validation batch and rejects a training split smaller than one batch.
+    Its train() is wrapped to record any error (its main() prints the error and returns normally) and to run
+    with $VERAGMIL_TORCH_THREADS torch threads when that is set; its DataLoader keeps the last validation batch
+    and rejects a training split smaller than one batch.
     """
+    import torch
+
     outcome = TrainOutcome()
     robomimic_train = getattr(module.train, "__wrapped__", module.train)
+    threads = os.environ.get("VERAGMIL_TORCH_THREADS")
 
     @functools.wraps(robomimic_train)
     def train(config, device):
         outcome.config = config
+        set_num_threads = torch.set_num_threads
+        if threads:
+            # train() calls torch.set_num_threads(2) itself: that call takes our count instead
+            torch.set_num_threads = lambda _: set_num_threads(int(threads))
         try:
             return robomimic_train(config, device=device)
         except Exception as err:
             outcome.error = err
             raise
+        finally:
+            torch.set_num_threads = set_num_threads
 
     def data_loader(dataset, batch_size=1, drop_last=False, **kwargs):
         from torch.utils.data import DataLoader
