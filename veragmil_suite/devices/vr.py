@@ -227,8 +227,10 @@ class VRDevice(Device):
 
     def _display_address(self) -> None:
         port = self.server.port
-        usb = "" if self.server.lan_urls() else f"  (Quest over USB: adb reverse tcp:{port} tcp:{port})"
-        print(f"VR page: {self.server.url}{usb}")
+        if self.server.lan_urls():
+            print(f"VR page on this machine: {self.server.url}")
+        else:
+            print(f"VR page: {self.server.url}  (Quest over USB: adb reverse tcp:{port} tcp:{port})")
         for url in self.server.lan_urls():
             print(f"VR page on this network: {url}")
         if self.server.token:

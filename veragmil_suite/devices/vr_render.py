@@ -89,8 +89,9 @@ class Renderer:
     no shadows, no reflections, coarse primitives. The OpenGL context (a second to make: every texture is
     uploaded) is kept across models that carry the same meshes and textures."""
 
-    def __init__(self, camera: str, width: int, height: int):
+    def __init__(self, camera: str, width: int, height: int, fast: bool = True):
         self.camera, self.width, self.height = camera, width, height
+        self.fast = fast  # False: the model's own quality (for comparison in scripts/bench_vr.py)
         self.model = None
         self._assets = None
         self._gl = None
@@ -117,9 +118,10 @@ class Renderer:
                 self._ctx.free()
                 self._gl.free()
             fast = copy.deepcopy(m)
-            fast.vis.quality.offsamples = 0
-            fast.vis.quality.numslices = min(int(fast.vis.quality.numslices), 12)
-            fast.vis.quality.numstacks = min(int(fast.vis.quality.numstacks), 8)
+            if self.fast:
+                fast.vis.quality.offsamples = 0
+                fast.vis.quality.numslices = min(int(fast.vis.quality.numslices), 12)
+                fast.vis.quality.numstacks = min(int(fast.vis.quality.numstacks), 8)
             fast.vis.global_.offwidth = self.width
             fast.vis.global_.offheight = self.height
             self._gl = GLContext(self.width, self.height)
@@ -130,8 +132,9 @@ class Renderer:
             self._assets = fast
             self.context_builds += 1
         self.scene = mujoco.MjvScene(m, maxgeom=10000)
-        for flag in (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION):
-            self.scene.flags[flag] = 0
+        if self.fast:
+            for flag in (mujoco.mjtRndFlag.mjRND_SHADOW, mujoco.mjtRndFlag.mjRND_REFLECTION):
+                self.scene.flags[flag] = 0
         self.cam = mujoco.MjvCamera()
         self.cam.type = mujoco.mjtCamera.mjCAMERA_FIXED
         self.cam.fixedcamid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_CAMERA, self.camera)

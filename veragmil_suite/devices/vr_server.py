@@ -254,9 +254,8 @@ class VRServer:
     @property
     def url(self) -> str:
         """The page's address for a browser on this machine (over USB: on the headset too)."""
-        return (
-            f"{'https' if self.tls else 'http'}://{'localhost' if is_loopback(self.host) else self.host}:{self.port}/"
-        )
+        local = is_loopback(self.host) or self.host in ("0.0.0.0", "::")
+        return f"{'https' if self.tls else 'http'}://{'localhost' if local else self.host}:{self.port}/"
 
     def lan_urls(self) -> list[str]:
         """The page's addresses for a headset on the same network (empty when bound to loopback)."""
