@@ -337,3 +337,16 @@ def test_vr_drives_the_spoon_in_scoop_granular():
         client.close()
         device.close()
         env.close()
+
+
+def test_a_crashed_renderer_is_restarted_and_the_loop_never_waits(session):
+    env, device, client = session
+    device.stale_timeout = 0.2
+    run_loop(env, device, until=lambda: len(client.frames) >= 3, max_seconds=10)
+    restarts = device.stream.restarts
+    device.stream._proc.kill()  # the rendering process dies (out of memory, a driver crash)
+    n = len(client.frames)
+    log = run_loop(env, device, until=lambda: len(client.frames) >= n + 3, max_seconds=20)
+    assert len(client.frames) >= n + 3 and device.stream.restarts == restarts + 1
+    steps = np.diff([e["t"] for e in log])
+    assert steps.max() < 0.5  # the teleoperation loop went on while the renderer came back

@@ -272,7 +272,8 @@ class VRDevice(Device):
         fresh = connected and visible and self.pose_age is not None and self.pose_age <= self.stale_timeout
         self._stale = not fresh
         if fresh:
-            self._pose_ages.append(now - recv_time)
+            with self._lock:  # status() may read the ages from the server thread
+                self._pose_ages.append(now - recv_time)
         ee = self._ee_pose(controller)
         self._target = self._clutch.update(
             squeeze=self._enabled and squeeze >= self.squeeze_threshold,
@@ -358,7 +359,8 @@ class VRDevice(Device):
 
     def stats(self) -> dict:
         """Server counters, stream timings, pose-handling time and pose age at action."""
-        ages = np.array(self._pose_ages) * 1000.0 if self._pose_ages else np.zeros(1)
+        with self._lock:
+            ages = np.array(self._pose_ages) * 1000.0 if self._pose_ages else np.zeros(1)
         return dict(
             server=self.server.stats(),
             stream=self.stream.stats(),
@@ -477,7 +479,8 @@ class VRDevice(Device):
 
     def status(self) -> dict:
         """What the operator's status line shows."""
-        ages = list(self._pose_ages)[-20:]
+        with self._lock:
+            ages = list(self._pose_ages)[-20:]
         latency = 1000.0 * float(np.mean(ages)) if ages else None
         rtt = self.server.rtt_ms
         c = self._clutch

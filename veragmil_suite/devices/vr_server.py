@@ -163,6 +163,7 @@ class VRServer:
         self._client_id = 0
         self._rtt_ms: float | None = None
         self._pings: dict[int, float] = {}
+        self._ping_id = 0  # across connections: a late pong of an old connection matches nothing
         self._last_message_time: float | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._wake: asyncio.Event | None = None
@@ -454,7 +455,7 @@ class VRServer:
         """Send the newest frame and status whenever there is one, and a ping every second."""
         last_frame = 0  # the newest frame goes out at once
         last_status, last_status_time = 0, 0.0
-        next_ping, ping_id = time.monotonic(), 0
+        next_ping = time.monotonic()
         try:
             while not ws.closed:
                 try:
@@ -476,9 +477,9 @@ class VRServer:
                     await ws.send_str(status[1])
                     self.count("status_sent")
                 if now >= next_ping:
-                    ping_id += 1
-                    self._pings = {ping_id: now}
+                    self._ping_id += 1
+                    self._pings = {self._ping_id: now}
                     next_ping = now + PING_INTERVAL_S
-                    await ws.send_str(server_message("ping", id=ping_id))
+                    await ws.send_str(server_message("ping", id=self._ping_id))
         except (ConnectionError, RuntimeError, asyncio.CancelledError):
             return  # the connection went away; the receive side cleans up
