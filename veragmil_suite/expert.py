@@ -36,7 +36,7 @@ class OperatorProfile:
         noise_time_s: correlation time of that noise (a hand's drift, not white jitter).
         plan_jitter_m: per-episode random offset of the dip and drag waypoints (no two scoops alike).
         one_axis: move along one world axis (or rotate about one) at a time, as a 3D-mouse user does.
-        input_levels: quantize each command to this many magnitude levels per direction (0: continuous).
+        input_levels: snap each command to this many deflection levels per direction (0: continuous).
         release_prob: per-step chance that the operator lets go of the input for a moment (jerky motion).
         max_accel: translation acceleration limit (m/s^2); a 3D mouse has none worth the name.
         max_hold_s: longest the spoon is held at the post-scoop pose before the expert gives up (an episode normally
@@ -63,14 +63,15 @@ PROFILES = {
     "noisy": OperatorProfile("noisy", pos_noise=0.008, rot_noise=0.04, plan_jitter_m=0.004),
     "spacemouse": OperatorProfile(
         "spacemouse",
-        speed=1.0,
+        speed=1.6,
         pos_noise=0.004,
         rot_noise=0.02,
         plan_jitter_m=0.004,
         one_axis=True,
-        input_levels=3,
-        release_prob=0.06,
+        input_levels=4,
+        release_prob=0.04,
         max_accel=10.0,
+        max_hold_s=5.0,
     ),
 }
 
@@ -103,6 +104,10 @@ APPROACH_RATE = 4.0
 INTEGRAL_GAIN = 1.5
 INTEGRAL_LIMIT = np.array([0.015, 0.015, 0.015, 0.15, 0.15, 0.15])
 INTEGRAL_LEAK = 0.97
+# one-axis (3D-mouse) operator: 0.1 rad of orientation error weighs like 1 cm of position error when picking the axis
+ONE_AXIS_WEIGHTS = np.array([1.0, 1.0, 1.0, 0.1, 0.1, 0.1])
+# coarse input: the largest deflection, in action units, split into ``input_levels`` steps
+QUANTIZE_FULL_SCALE = 0.6
 PHASE_NAMES = tuple(p.name for p in PHASES)
 
 
@@ -228,22 +233,19 @@ class ScriptedScooper:
         vel = _clip_norm(vel, np.linalg.norm(pos_err) * APPROACH_RATE)
         self.last_vel = vel
         ang = _clip_norm(rot_err * APPROACH_RATE, phase.turn_speed * self.profile.speed)
-        cmd = np.concatenate([vel, ang])
-        cmd += self._noise()
-        err = np.concatenate([pos_err, rot_err])
-        if self.profile.one_axis:
-            cmd = self._one_axis(cmd, err)
-        # world-frame velocity -> goal offset that OSC turns into that velocity. XArm7's joints have 1 Nm of
-        # friction that swallows small offsets (the spoon stalls short of slow targets), so the offset also carries
-        # the integral of the velocity shortfall: a reference motion the spoon is pulled along.
-        measured = self._measured_velocity(eef_pos, eef_rot)
-        self.integral = np.clip(
-            INTEGRAL_LEAK * self.integral + INTEGRAL_GAIN * (cmd - measured) * self.dt, -INTEGRAL_LIMIT, INTEGRAL_LIMIT
-        )
-        delta = cmd * self.speed_to_offset + self.integral
+        cmd = np.concatenate([vel, ang]) + self._noise()
+        # world frame -> the frame OSC reads deltas in
         base_rot = self._controller_frame()
-        delta = np.concatenate([base_rot.T @ delta[:3], base_rot.T @ delta[3:]])
-        action = delta / self.action_scale
+        cmd = _to_frame(base_rot, cmd)
+        err = _to_frame(base_rot, np.concatenate([pos_err, rot_err]))
+        measured = _to_frame(base_rot, self._measured_velocity(eef_pos, eef_rot))
+        mask = self._one_axis(err) if self.profile.one_axis else np.ones(6)
+        # velocity -> the goal offset that OSC turns into that velocity. XArm7's joints have 1 Nm of friction that
+        # swallows small offsets (the spoon stalls short of slow targets), so the offset also carries the integral
+        # of the velocity shortfall: a reference motion the spoon is pulled along (a hand pushes harder, too).
+        shortfall = INTEGRAL_GAIN * (cmd - measured) * self.dt * mask
+        self.integral = np.clip(INTEGRAL_LEAK * self.integral + shortfall, -INTEGRAL_LIMIT, INTEGRAL_LIMIT)
+        action = mask * (cmd * self.speed_to_offset + self.integral) / self.action_scale
         if self.profile.input_levels:
             action = self._quantize(action)
         if self.profile.release_prob and self.rng.random() < self.profile.release_prob:
@@ -304,23 +306,24 @@ class ScriptedScooper:
         self.noise = a * self.noise + np.sqrt(1 - a**2) * std * self.rng.standard_normal(6)
         return self.noise
 
-    def _one_axis(self, cmd: np.ndarray, err: np.ndarray) -> np.ndarray:
-        """Keep one axis of the command: the one with the largest remaining error (sticky, as a hand is)."""
-        scale = np.array([1.0, 1.0, 1.0, 0.1, 0.1, 0.1])  # 0.1 rad of error weighs like 1 cm
-        weighted = np.abs(err) * scale
+    def _one_axis(self, err: np.ndarray) -> np.ndarray:
+        """A one-hot mask: the input axis with the largest remaining error (sticky, as a hand on a 3D mouse is)."""
+        weighted = np.abs(err) * ONE_AXIS_WEIGHTS
         if self.axis is None or weighted[self.axis] < 0.3 * weighted.max() or weighted[self.axis] < 0.002:
             self.axis = int(np.argmax(weighted))
-        out = np.zeros(6)
-        out[self.axis] = cmd[self.axis]
-        return out
+        mask = np.zeros(6)
+        mask[self.axis] = 1.0
+        return mask
 
     def _quantize(self, action: np.ndarray) -> np.ndarray:
-        """Coarse input: each component snapped to one of a few levels (a 3D mouse's knob is all or nothing)."""
-        levels = self.profile.input_levels
-        peak = np.max(np.abs(action))
-        if peak == 0:
-            return action
-        return np.round(action / peak * levels) / levels * peak
+        """Coarse input: each component snapped to a few deflection levels, small ones to nothing (a dead band)."""
+        step = QUANTIZE_FULL_SCALE / self.profile.input_levels
+        return np.clip(np.round(action / step), -self.profile.input_levels, self.profile.input_levels) * step
+
+
+def _to_frame(rot: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """A (linear, angular) 6-vector expressed in the frame whose world rotation is ``rot``."""
+    return np.concatenate([rot.T @ v[:3], rot.T @ v[3:]])
 
 
 def _clip_norm(v: np.ndarray, limit: float) -> np.ndarray:
