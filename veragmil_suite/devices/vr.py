@@ -62,6 +62,7 @@ class VRDevice(Device):
         stream_width, stream_height (int): streamed RGB size
         stream_fps (float): most streamed frames per second
         stream_depth (bool): show the colour-mapped depth panel beside the RGB one
+        depth_range (tuple or None): metres from red to blue on the depth panel; None fits what the camera sees
         jpeg_quality (int): 1-100
         encoder (str): "opencv" or "pillow"
         pos_sensitivity (float): end-effector metres per hand metre
@@ -96,6 +97,7 @@ class VRDevice(Device):
         stream_height: int = 240,
         stream_fps: float = 30.0,
         stream_depth: bool = True,
+        depth_range: tuple[float, float] | None = None,
         jpeg_quality: int = 80,
         encoder: str = "opencv",
         pos_sensitivity: float = 1.0,
@@ -190,6 +192,7 @@ class VRDevice(Device):
             height=stream_height,
             fps=stream_fps,
             depth=stream_depth,
+            depth_range=depth_range,
             jpeg_quality=jpeg_quality,
             encoder=encoder,
             on_frame=self.server.publish_frame,
@@ -496,6 +499,9 @@ class VRDevice(Device):
             parts.append(f"pose {latency:.0f} ms")
         if rtt is not None:
             parts.append(f"rtt {rtt:.0f} ms")
+        shown = self.stream.shown_depth_range
+        if self.stream.depth and shown is not None:
+            parts.append(f"depth {shown[0]:.2f}-{shown[1]:.2f} m")
         if self.episode_command is not None:
             parts.append(f"episode: {self.episode_command}")
         if self.status_message:
@@ -511,6 +517,7 @@ class VRDevice(Device):
             latency_ms=latency,
             rtt_ms=rtt,
             depth=self.stream.depth,
+            depth_range_m=None if self.stream.shown_depth_range is None else list(self.stream.shown_depth_range),
             recenter=self._recenters,
             episode=self.episodes,
             episode_command=self.episode_command,

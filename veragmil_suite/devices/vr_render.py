@@ -65,6 +65,17 @@ def depth_colormap(depth_m: np.ndarray, near: float, far: float) -> np.ndarray:
     return out
 
 
+def auto_depth_range(depth_m: np.ndarray, far_clip: float) -> tuple[float, float]:
+    """The depths a view spans (1st to 99th percentile of what is nearer than the far clip, 5% margin): the
+    colour scale of the depth panel, fixed per model so colours mean the same distance all episode long."""
+    seen = depth_m[depth_m < 0.99 * far_clip]
+    if seen.size == 0:
+        return 0.0, far_clip
+    lo, hi = np.percentile(seen, [1.0, 99.0])
+    margin = max(0.05 * (hi - lo), 0.01)
+    return float(max(lo - margin, 0.0)), float(hi + margin)
+
+
 def send(stream, obj) -> None:
     data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
     stream.write(_LEN.pack(len(data)))
@@ -171,7 +182,7 @@ def serve(config: dict, requests, replies) -> None:
     import mujoco
 
     renderer = Renderer(config["camera"], config["width"], config["height"])
-    near, far = config["depth_range"]
+    depth_range = config["depth_range"]  # None: from the first frame of each model
     while True:
         msg = receive(requests)
         if msg is None or msg[0] == "stop":
@@ -180,6 +191,7 @@ def serve(config: dict, requests, replies) -> None:
             if msg[0] == "model":
                 t0 = time.perf_counter()
                 renderer.load(mujoco.MjModel.from_binary_path(msg[1]))
+                depth_range = config["depth_range"]
                 info = dict(context_builds=renderer.context_builds, load_ms=1000 * (time.perf_counter() - t0))
                 send(replies, ("model_ok", info))
             elif msg[0] == "frame":
@@ -187,7 +199,9 @@ def serve(config: dict, requests, replies) -> None:
                 t0 = time.perf_counter()
                 rgb, depth_m = renderer.render(req["qpos"], req["mocap_pos"], req["mocap_quat"])
                 t1 = time.perf_counter()
-                image = np.concatenate([rgb, depth_colormap(depth_m, near, far)], axis=1) if req["depth"] else rgb
+                if depth_range is None:
+                    depth_range = auto_depth_range(depth_m, renderer.far)
+                image = np.concatenate([rgb, depth_colormap(depth_m, *depth_range)], axis=1) if req["depth"] else rgb
                 jpeg = encode_jpeg(image, config["quality"], config["encoder"])
                 t2 = time.perf_counter()
                 result = dict(
@@ -197,6 +211,7 @@ def serve(config: dict, requests, replies) -> None:
                     render_ms=1000 * (t1 - t0),
                     encode_ms=1000 * (t2 - t1),
                     depth_m=depth_m.copy() if req.get("keep_depth") else None,
+                    depth_range=depth_range,
                 )
                 send(replies, ("frame", result))
             else:

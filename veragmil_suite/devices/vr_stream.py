@@ -44,7 +44,8 @@ class CameraStream:
         width, height (int): size of the RGB panel (the depth panel, when shown, doubles the width)
         fps (float): most frames per second
         depth (bool): show the depth panel (can be toggled while running)
-        depth_range (tuple): metres mapped onto the colour scale
+        depth_range (tuple or None): metres mapped onto the colour scale; None: what the camera sees in the
+            first frame of each model (robust percentiles), so colours keep their meaning through an episode
         jpeg_quality (int): 1-100
         encoder (str): "opencv" or "pillow"
         on_frame (callable): ``on_frame(frame: bytes)`` with a ``vr_protocol`` binary frame, from the stream thread
@@ -60,7 +61,7 @@ class CameraStream:
         height: int = 240,
         fps: float = 30.0,
         depth: bool = True,
-        depth_range: tuple[float, float] = (0.2, 2.5),
+        depth_range: tuple[float, float] | None = None,
         jpeg_quality: int = 80,
         encoder: str = "opencv",
         on_frame: Callable[[bytes], None] | None = None,
@@ -76,13 +77,14 @@ class CameraStream:
         self.width, self.height = int(width), int(height)
         self.fps = float(fps)
         self.depth = bool(depth)
-        self.depth_range = (float(depth_range[0]), float(depth_range[1]))
+        self.depth_range = None if depth_range is None else (float(depth_range[0]), float(depth_range[1]))
         self.jpeg_quality = int(jpeg_quality)
         self.encoder = encoder
         self.on_frame = on_frame
         self.active = active or (lambda: True)
         self.keep_depth = keep_depth
         self.last_depth_m: np.ndarray | None = None
+        self.shown_depth_range: tuple[float, float] | None = None  # metres from red to blue on the depth panel
         self.frames = 0
         self.errors = 0
         self.restarts = 0
@@ -246,6 +248,7 @@ class CameraStream:
         self.frames += 1
         if result["depth_m"] is not None:
             self.last_depth_m = result["depth_m"]
+        self.shown_depth_range = result["depth_range"]
         frame = pack_frame(result["jpeg"], self.frames, sim_time, result["width"], result["height"], panels)
         if self.on_frame is not None:
             self.on_frame(frame)

@@ -9,7 +9,7 @@ import { poseMessage } from "./xr_input.js";
 const PANEL_DISTANCE = 1.2; // metres in front of the operator
 const PANEL_HEIGHT = 0.6;
 const PANEL_DROP = 0.15; // below eye level, so the hands stay in view above it
-const STATUS_HEIGHT = 0.06;
+const STATUS_ASPECT = 1024 / 64; // the status canvas
 
 // Counters for whoever debugs this page (devtools) and for the browser test.
 const stats = {
@@ -211,10 +211,11 @@ async function enterVR() {
       uploadedStatus = statusVersion;
     }
     const width = PANEL_HEIGHT * aspect;
-    const below = [panel.centre[0], panel.centre[1] - PANEL_HEIGHT / 2 - STATUS_HEIGHT, panel.centre[2]];
+    const statusHeight = width / STATUS_ASPECT;
+    const below = [panel.centre[0], panel.centre[1] - PANEL_HEIGHT / 2 - statusHeight, panel.centre[2]];
     const items = [
       { kind: "quad", model: fromYawTranslation(panel.yaw, panel.centre), size: [width, PANEL_HEIGHT, 1], texture: panelTexture },
-      { kind: "quad", model: fromYawTranslation(panel.yaw, below), size: [width, STATUS_HEIGHT, 1], texture: statusTexture },
+      { kind: "quad", model: fromYawTranslation(panel.yaw, below), size: [width, statusHeight, 1], texture: statusTexture },
     ];
     const engaged = stats.lastStatus && stats.lastStatus.engaged;
     const mainHand = (link.config && link.config.hand) || "right";
