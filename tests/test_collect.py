@@ -1,0 +1,189 @@
+"""veragmil-collect: the headless scripted form automation calls, Ctrl-C mid-episode, keep/discard from a device,
+scripted 3D-mouse data labelled scripted, clear errors for missing hardware, --help of every console command."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from veragmil_suite.recording import open_dataset
+from veragmil_suite.scripts import collect_human_demonstrations as collect
+from veragmil_suite.scripts import dataset_tools
+
+BIN = Path(sys.executable).parent
+LIGHT = ["--food", "pasta", "--n-grains", "12", "--camera-size", "32"]
+
+
+def _headless_env():
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    env["MUJOCO_GL"] = "osmesa"
+    return env
+
+
+def test_scripted_collection_runs_headless_in_its_automation_form(tmp_path):
+    out = tmp_path / "out.hdf5"
+    args = ["--device", "scripted", "--food", "rice", "--episodes", "2", "--output", str(out)]
+    result = subprocess.run(
+        [str(BIN / "veragmil-collect"), *args],
+        cwd=tmp_path,
+        env=_headless_env(),
+        stdin=subprocess.DEVNULL,  # a prompt would fail on end of input
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert result.stdout.count("saved as demo_") == 2
+    assert "spilled" in result.stdout and "time" in result.stdout
+    with open_dataset(out) as f:
+        data = f["data"]
+        assert sorted(data.keys()) == ["demo_0", "demo_1"]
+        for name in data:
+            g = data[name]
+            assert g.attrs["success"] and g.attrs["device"] == "scripted" and g.attrs["source"] == "scripted"
+            assert g.attrs["food"] == "rice" and g.attrs["operator"] == "scripted-expert"
+            assert g["obs/overhead_image"].shape[1:] == (84, 84, 3)
+            assert g.attrs["num_samples"] == g["actions"].shape[0] >= 100
+        attempts = json.loads(data.attrs["attempts"])
+        assert sum(a["kept"] for a in attempts) == 2
+        assert all(a["device"] == "scripted" for a in attempts)
+
+
+def test_ctrl_c_mid_episode_keeps_the_saved_episodes(tmp_path):
+    out = tmp_path / "interrupted.hdf5"
+    args = [
+        "--device",
+        "scripted",
+        *LIGHT,
+        "--episodes",
+        "20",
+        "--keep",
+        "all",
+        "--horizon",
+        "60",
+        "--output",
+        str(out),
+    ]
+    child = subprocess.Popen(
+        [str(BIN / "veragmil-collect"), *args],
+        env=_headless_env(),
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        for line in child.stdout:
+            if "saved as demo_0" in line:
+                break
+        os.kill(child.pid, signal.SIGINT)  # the second episode is under way
+        stdout, stderr = child.communicate(timeout=120)
+    finally:
+        if child.poll() is None:
+            child.kill()
+    assert "interrupted" in stdout
+    assert "Traceback" not in stderr
+    assert child.returncode == 1  # fewer episodes than asked for
+    with open_dataset(out) as f:
+        names = sorted(f["data"].keys())
+        assert "demo_0" in names
+        for name in names:
+            assert f["data"][name]["actions"].shape[0] == f["data"][name].attrs["num_samples"] > 0
+
+
+def test_scripted_3d_mouse_data_is_labelled_scripted(tmp_path):
+    out = tmp_path / "mouse.hdf5"
+    args = ["--device", "scripted", "--profile", "spacemouse", *LIGHT, "--keep", "all", "--horizon", "20"]
+    assert collect.main([*args, "--cameras", "--episodes", "1", "--output", str(out)]) == 0
+    with open_dataset(out) as f:
+        data = f["data"]
+        g = data["demo_0"]
+        for attrs in (data.attrs, g.attrs):
+            assert attrs["device"] == "scripted" and attrs["source"] == "scripted"
+            assert attrs["operator"] == "scripted-spacemouse" and attrs["profile"] == "spacemouse"
+        assert "human" not in json.dumps({k: str(v) for k, v in g.attrs.items() if k != "model_file"})
+        assert set(g["obs"].keys()).isdisjoint({"overhead_image", "overhead_depth"})  # --cameras with none: low-dim
+        actions = g["actions"][()]
+        assert ((actions != 0).sum(axis=1) <= 1).all()
+
+
+class FakeHeadset:
+    """A device that pushes the spoon up for a few steps, then presses the scripted button ("keep"/"discard")."""
+
+    def __init__(self, env, verdicts):
+        self.env = env
+        self.verdicts = list(verdicts)
+        self.recording = False
+        self.episode_command = None
+        self.started = 0
+
+    def start_control(self):
+        self.started += 1
+        self.episode_command = None
+        self.steps = 0
+
+    def input2action(self):
+        self.steps += 1
+        if self.steps > 5:
+            self.episode_command = self.verdicts.pop(0)
+            return None
+        return {"right_delta": np.array([0.0, 0.0, 0.3, 0.0, 0.0, 0.0])}
+
+    def close(self):
+        pass
+
+
+def test_keep_and_discard_from_the_device(tmp_path, monkeypatch, capsys):
+    out = tmp_path / "vr.hdf5"
+    monkeypatch.setattr(
+        collect,
+        "make_operator",
+        lambda args, env: collect.TeleopOperator(env, FakeHeadset(env, ["discard", "keep"]), ""),
+    )
+    argv = ["--device", "vr", *LIGHT, "--cameras", "--episodes", "1", "--operator", "tester", "--output", str(out)]
+    assert collect.main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "discarded" in printed and "saved as demo_0" in printed
+    with open_dataset(out) as f:
+        data = f["data"]
+        assert list(data.keys()) == ["demo_0"]
+        g = data["demo_0"]
+        assert g.attrs["device"] == "vr" and g.attrs["source"] == "human" and g.attrs["operator"] == "tester"
+        assert g.attrs["num_samples"] == 5 and g.attrs["end_reason"] == "operator"
+        np.testing.assert_array_equal(g["actions"][:, 2], 0.3)
+        attempts = json.loads(data.attrs["attempts"])
+        assert [a["kept"] for a in attempts] == [False, True]
+        assert attempts[0]["demo"] is None and attempts[1]["demo"] == "demo_0"
+        assert all("success" in a and "grains_spilled" in a for a in attempts)
+
+
+def test_missing_hardware_or_display_is_named(tmp_path, monkeypatch):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    for device, message in (("keyboard", "needs a display"), ("spacemouse", "no SpaceMouse found")):
+        out = tmp_path / f"{device}.hdf5"
+        with pytest.raises(SystemExit, match=message):
+            collect.main(["--device", device, *LIGHT, "--cameras", "--output", str(out)])
+
+
+@pytest.mark.parametrize(
+    "main, expected",
+    [
+        (collect.main, "--device"),
+        (dataset_tools.info_main, "--json"),
+        (dataset_tools.merge_main, "--output"),
+        (dataset_tools.split_main, "--ratio"),
+        (dataset_tools.replay_main, "--use-actions"),
+        (dataset_tools.render_obs_main, "--cameras"),
+    ],
+)
+def test_every_console_command_has_help(main, expected, capsys):
+    with pytest.raises(SystemExit) as stop:
+        main(["--help"])
+    assert stop.value.code == 0
+    assert expected in capsys.readouterr().out
