@@ -226,6 +226,8 @@ def main() -> None:
     sys.stdout = sys.stderr  # a stray print must not corrupt the reply stream
     os.environ.setdefault("MUJOCO_GL", "osmesa")
     os.environ.setdefault("PYOPENGL_PLATFORM", os.environ["MUJOCO_GL"])
+    if hasattr(os, "nice"):
+        os.nice(int(config.get("nice", 0)))  # short of CPU, drop frames rather than control steps
     serve(config, requests, replies)
 
 

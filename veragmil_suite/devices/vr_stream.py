@@ -2,10 +2,11 @@
 
 A thread of this process samples the simulation's positions (``qpos`` and mocap poses) up to ``fps`` times a
 second, hands them to the renderer process (``vr_render``: its own OpenGL context, MuJoCo and GIL) and publishes
-the JPEG it returns. The teleoperation loop never waits for a frame and a frame never waits for a step; a frame
-may mix two consecutive physics substeps (a few milliseconds apart), which no operator can see. The model goes
-to the renderer once per model (``mj_saveModel`` to a temporary file, ~10 ms): robosuite's hard reset builds a
-new one each episode, and the renderer keeps its OpenGL context when the meshes and textures are unchanged.
+the JPEG it returns. The renderer runs at a lower priority (nice 10): short of CPU, the stream drops frames before
+the simulation drops real time. The teleoperation loop never waits for a frame and a frame never waits for a step;
+a frame may mix two consecutive physics substeps (a few milliseconds apart), which no operator can see. The model
+goes to the renderer once per model (``mj_saveModel`` to a temporary file, ~10 ms): robosuite's hard reset builds
+a new one each episode, and the renderer keeps its OpenGL context when the meshes and textures are unchanged.
 
 Depth comes from the same render pass, in metres, colour-mapped (turbo, near red to far blue) and shown beside
 the RGB image in the same JPEG: one decode and one texture on the headset.
@@ -33,6 +34,7 @@ LOG = logging.getLogger(__name__)
 
 WORKER = Path(__file__).resolve().parent / "vr_render.py"
 RESTART_DELAY_S = 2.0
+RENDER_NICENESS = 10  # the renderer yields the CPU to the simulation: the environment must keep real time
 
 
 class CameraStream:
@@ -142,6 +144,7 @@ class CameraStream:
             quality=self.jpeg_quality,
             encoder=self.encoder,
             depth_range=self.depth_range,
+            nice=RENDER_NICENESS,
         )
         self._proc = subprocess.Popen(
             [sys.executable, str(WORKER), json.dumps(config)],
