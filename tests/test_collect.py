@@ -171,6 +171,22 @@ def test_missing_hardware_or_display_is_named(tmp_path, monkeypatch):
             collect.main(["--device", device, *LIGHT, "--cameras", "--output", str(out)])
 
 
+def test_controller_option_takes_an_osc_config_file(tmp_path):
+    config = collect.controller_config("OSC_POSE", "XArm7")
+    config["body_parts"]["right"]["kp"] = 250
+    path = tmp_path / "stiff.json"
+    path.write_text(json.dumps(config))
+    assert collect.controller_config(str(path), "XArm7")["body_parts"]["right"]["kp"] == 250
+    config["body_parts"]["right"]["type"] = "JOINT_VELOCITY"
+    path.write_text(json.dumps(config))
+    with pytest.raises(SystemExit, match="'JOINT_VELOCITY'; collection needs OSC_POSE"):
+        collect.controller_config(str(path), "XArm7")
+    with pytest.raises(SystemExit, match="do not drive IK_POSE"):
+        collect.controller_config("IK_POSE", "XArm7")
+    with pytest.raises(SystemExit, match="neither OSC_POSE nor a readable JSON"):
+        collect.controller_config(str(tmp_path / "missing.json"), "XArm7")
+
+
 @pytest.mark.parametrize(
     "main, expected",
     [

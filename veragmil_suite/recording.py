@@ -406,6 +406,7 @@ class DemoWriter:
         self.env_meta = env_meta
         self.provenance = dict(provenance)
         self.valid_ratio = valid_ratio
+        self.written: list[str] = []  # demos written by this writer, in order
         if self.path.exists():
             with open_dataset(self.path, "a") as f:
                 self._check_appendable(f)
@@ -484,7 +485,8 @@ class DemoWriter:
             self._log(data, dict(demo=name, kept=True, **episode.attrs, **episode.metrics))
             self._update_totals(f)
             f.flush()
-        self.next_index += 1
+            self.next_index += 1
+            self.written.append(name)
         return name
 
     def log_discarded(self, metrics: dict, attrs: dict | None = None) -> None:

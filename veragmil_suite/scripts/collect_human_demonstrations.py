@@ -18,6 +18,7 @@ Example:
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import time
@@ -42,7 +43,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--episodes", type=int, default=1, help="demonstrations to save")
     p.add_argument("--output", required=True, help="HDF5 file (appended to when it exists)")
     p.add_argument("--robot", default="XArm7")
-    p.add_argument("--controller", choices=("OSC_POSE", "IK_POSE"), default="OSC_POSE", help="arm controller")
+    p.add_argument(
+        "--controller",
+        default="OSC_POSE",
+        help="OSC_POSE, or a robosuite composite-controller JSON file whose arm is OSC_POSE (other gains); every "
+        "device and the expert send OSC_POSE deltas (robosuite's devices support no IK_POSE)",
+    )
     p.add_argument("--control-freq", type=int, default=20, help="control rate, Hz (the paper's VR runs at 60)")
     p.add_argument("--horizon", type=int, default=400, help="longest episode, control steps")
     p.add_argument("--n-grains", type=int, default=None, help="grains in the bowl (default: the food's own)")
@@ -80,13 +86,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def env_kwargs_from_args(args) -> dict:
     """robosuite.make keyword arguments (besides the env name) for the command line, JSON-serializable."""
-    from veragmil_suite.controllers import load_scoop_controller_config
-
     height, width = (args.camera_size * 2)[:2]
     kwargs = dict(
         robots=args.robot,
         food=args.food,
-        controller_configs=load_scoop_controller_config(args.controller, robot=args.robot),
+        controller_configs=controller_config(args.controller, args.robot),
         control_freq=args.control_freq,
         horizon=args.horizon,
         ignore_done=False,
@@ -102,6 +106,32 @@ def env_kwargs_from_args(args) -> dict:
     if args.n_grains is not None:
         kwargs["n_grains"] = args.n_grains
     return kwargs
+
+
+def controller_config(value: str, robot: str) -> dict:
+    """The composite controller config for ``--controller``: our OSC_POSE default or a JSON file with an OSC arm."""
+    from veragmil_suite.controllers import ARM_CONTROLLERS, load_scoop_controller_config
+
+    if value == "OSC_POSE":
+        return load_scoop_controller_config("OSC_POSE", robot=robot)
+    if value in ARM_CONTROLLERS:
+        raise SystemExit(
+            f"veragmil-collect: collection needs OSC_POSE deltas; robosuite's devices and the scripted expert do not "
+            f"drive {value}"
+        )
+    try:
+        with open(value) as f:
+            config = json.load(f)
+    except (OSError, ValueError) as e:
+        raise SystemExit(
+            f"veragmil-collect: --controller {value!r} is neither OSC_POSE nor a readable JSON file ({e})"
+        ) from None
+    arm = config.get("body_parts", {}).get("right", {}) if isinstance(config, dict) else {}
+    if arm.get("type") != "OSC_POSE":
+        raise SystemExit(
+            f"veragmil-collect: {value} drives the arm with {arm.get('type')!r}; collection needs OSC_POSE deltas"
+        )
+    return config
 
 
 # ---------------------------------------------------------------------------------------------------------------- #
@@ -184,8 +214,6 @@ class TeleopOperator:
 def make_operator(args, env):
     """The operator for ``--device``; a clear SystemExit when its hardware or display is missing."""
     if args.device == "scripted":
-        if args.controller != "OSC_POSE":
-            raise SystemExit("veragmil-collect: the scripted expert drives OSC_POSE; drop --controller IK_POSE")
         return ScriptedOperator(env, args.profile, args.seed)
     if args.device == "keyboard":
         if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
@@ -354,7 +382,8 @@ def main(argv: list[str] | None = None) -> int:
                 writer.log_discarded(metrics, attrs=dict(attempt=attempts, end_reason=reason))
                 print("  discarded", flush=True)
     except KeyboardInterrupt:
-        print(f"\ninterrupted: the episode in progress is dropped; {kept} saved episodes are in {args.output}")
+        kept = len(writer.written)
+        print(f"\ninterrupted: the episode in progress is dropped; {kept} episodes saved to {args.output}")
     finally:
         operator.close()
         env.close()
