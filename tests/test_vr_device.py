@@ -350,3 +350,26 @@ def test_a_crashed_renderer_is_restarted_and_the_loop_never_waits(session):
     assert len(client.frames) >= n + 3 and device.stream.restarts == restarts + 1
     steps = np.diff([e["t"] for e in log])
     assert steps.max() < 0.5  # the teleoperation loop went on while the renderer came back
+
+
+def test_hidden_page_and_estimated_positions_release_the_clutch(session):
+    """A headset that hides the page (asleep, system menu) or a controller whose position is only estimated
+    (WebXR's emulatedPosition) releases the clutch, latched, while messages keep coming."""
+    env, device, client = session
+
+    def script(t):
+        if t < 0.2:
+            return dict(right=controller())
+        if 1.0 < t < 1.5:
+            return dict(right=controller(squeeze=1.0), visible=False)
+        if 2.0 < t < 2.5:
+            return dict(right=controller(squeeze=1.0, emulated=True))
+        if 1.5 <= t <= 1.6 or 2.5 <= t <= 2.6:
+            return dict(right=controller(squeeze=0.0))  # let go, to engage again
+        return dict(right=controller(squeeze=1.0))
+
+    log = lockstep(env, device, client, script, duration=3.0)
+    engaged = {round(e["t"], 2): e["engaged"] for e in log}
+    assert engaged[0.9] and engaged[1.9] and engaged[2.9]
+    assert not any(v for t, v in engaged.items() if 1.05 <= t <= 1.5 or 2.05 <= t <= 2.5)
+    assert device.clutch.forced_releases == 2

@@ -64,7 +64,7 @@ class VRDevice(Device):
         stream_depth (bool): show the colour-mapped depth panel beside the RGB one
         depth_range (tuple or None): metres from red to blue on the depth panel; None fits what the camera sees
         jpeg_quality (int): 1-100
-        encoder (str): "opencv" or "pillow"
+        encoder (str): "pillow" (measured 2-3x faster on these frames, scripts/bench_vr.py) or "opencv"
         pos_sensitivity (float): end-effector metres per hand metre
         rot_sensitivity (float): end-effector radians per hand radian
         precision_factor (float): translation scale multiplier in precision mode
@@ -99,7 +99,7 @@ class VRDevice(Device):
         stream_depth: bool = True,
         depth_range: tuple[float, float] | None = None,
         jpeg_quality: int = 80,
-        encoder: str = "opencv",
+        encoder: str = "pillow",
         pos_sensitivity: float = 1.0,
         rot_sensitivity: float = 1.0,
         precision_factor: float = 0.25,

@@ -27,11 +27,11 @@ import time
 
 import numpy as np
 
-ENCODERS = ("opencv", "pillow")
+ENCODERS = ("pillow", "opencv")
 _LEN = struct.Struct("<I")
 
 
-def encode_jpeg(rgb: np.ndarray, quality: int = 80, encoder: str = "opencv") -> bytes:
+def encode_jpeg(rgb: np.ndarray, quality: int = 80, encoder: str = "pillow") -> bytes:
     """JPEG bytes of an (H, W, 3) uint8 RGB image."""
     if encoder == "opencv":
         import cv2

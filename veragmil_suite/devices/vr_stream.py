@@ -49,7 +49,7 @@ class CameraStream:
         depth_range (tuple or None): metres mapped onto the colour scale; None: what the camera sees in the
             first frame of each model (robust percentiles), so colours keep their meaning through an episode
         jpeg_quality (int): 1-100
-        encoder (str): "opencv" or "pillow"
+        encoder (str): "pillow" (faster on these frames, scripts/bench_vr.py) or "opencv"
         on_frame (callable): ``on_frame(frame: bytes)`` with a ``vr_protocol`` binary frame, from the stream thread
         active (callable): frames are made only while this returns True (someone is watching)
         keep_depth (bool): keep the last depth map in metres (``last_depth_m``), for inspection
@@ -65,7 +65,7 @@ class CameraStream:
         depth: bool = True,
         depth_range: tuple[float, float] | None = None,
         jpeg_quality: int = 80,
-        encoder: str = "opencv",
+        encoder: str = "pillow",
         on_frame: Callable[[bytes], None] | None = None,
         active: Callable[[], bool] | None = None,
         keep_depth: bool = False,
