@@ -250,7 +250,7 @@ def test_camera_frames_and_status_reach_the_page(session):
     frames = [h for _, h in client.frames]  # the first is the newest frame when the page connected
     assert len(frames) >= 12
     assert [f["frame_id"] for f in frames] == sorted(f["frame_id"] for f in frames)
-    assert frames[-1]["sim_time"] > frames[1]["sim_time"]
+    assert 0 <= env.sim.data.time - frames[-1]["sim_time"] < 0.5  # what the page shows is the current scene
     # every episode (hard reset) builds a new model; the OpenGL context made for the first one is kept
     assert device.stream.models_sent >= 2 and device.stream.stats()["context_builds"] == 1
     assert frames[-1]["panels"] == 2 and (frames[-1]["width"], frames[-1]["height"]) == (640, 240)

@@ -453,6 +453,8 @@ class VRServer:
 
     async def _send_loop(self, ws: web.WebSocketResponse) -> None:
         """Send the newest frame and status whenever there is one, and a ping every second."""
+        with self._publish_lock:
+            published_before = self._frame[0] if self._frame else 0
         last_frame = 0  # the newest frame goes out at once
         last_status, last_status_time = 0, 0.0
         next_ping = time.monotonic()
@@ -466,8 +468,10 @@ class VRServer:
                 with self._publish_lock:
                     frame, status = self._frame, self._status
                 if frame is not None and frame[0] != last_frame:
-                    if last_frame and frame[0] > last_frame + 1:
-                        self.count("frames_skipped", frame[0] - last_frame - 1)
+                    # frames published while this connection was busy and never sent (not those from before it)
+                    skipped = frame[0] - max(last_frame, published_before) - 1
+                    if skipped > 0:
+                        self.count("frames_skipped", skipped)
                     last_frame = frame[0]
                     await ws.send_bytes(frame[1])
                     self.count("frames_sent")
