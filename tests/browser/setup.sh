@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# What tests/test_vr_browser.py needs: Debian's chromium (+ chromium-driver), Node.js with npm, and the npm packages
-# pinned in package-lock.json (playwright-core drives /usr/bin/chromium; iwer is Meta's WebXR emulator). Installs
-# only what is missing; sudo is used when not root.
+# What tests/test_vr_browser.py needs: Debian's chromium (+ chromium-driver), Node.js >= 18 with npm (Debian 12's
+# own nodejs is enough), and the npm packages pinned in package-lock.json (playwright-core 1.61, the last for
+# Node 18, drives /usr/bin/chromium; iwer is Meta's WebXR emulator). Installs only what is missing; sudo is used
+# when not root.
 set -euo pipefail
 cd "$(dirname "$0")"
 
