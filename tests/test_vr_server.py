@@ -248,3 +248,19 @@ def test_https_with_a_generated_certificate_that_is_kept(tmp_path):
     assert cert.stat().st_mtime_ns == mtime  # the same names: the certificate the headset trusts is kept
     vr_tls.ensure_certificate(["localhost", "127.0.0.1", "10.1.2.3"], tmp_path)
     assert vr_tls._cert_names(cert) >= {"localhost", "127.0.0.1", "10.1.2.3"}  # a new address: remade
+
+
+def test_a_localhost_server_answers_only_to_localhost_names(server):
+    for host in (f"localhost:{server.port}", f"127.0.0.1:{server.port}", f"[::1]:{server.port}"):
+        request = urllib.request.Request(server.url, headers={"Host": host})
+        with urllib.request.urlopen(request, timeout=5) as r:
+            assert r.status == 200
+    rebound = urllib.request.Request(server.url, headers={"Host": f"evil.example:{server.port}"})
+    with pytest.raises(urllib.error.HTTPError) as e:
+        urllib.request.urlopen(rebound, timeout=5)
+    assert e.value.code == 403
+    sneaky = Client(server.url, headers={"Host": "evil.example", "Origin": "http://evil.example"})
+    with pytest.raises(aiohttp.WSServerHandshakeError):
+        sneaky.connect()  # DNS rebinding: same origin as far as the browser knows, refused all the same
+    sneaky.close()
+    assert server.stats()["forbidden_host"] == 2

@@ -9,7 +9,9 @@ Security: the server binds to 127.0.0.1 by default (USB with ``adb reverse``). B
 pairing token (generated when not given, shown in the terminal, entered on the page or passed as ``?token=``),
 and turns HTTPS on by default. Repeated wrong tokens lock the address out for a minute, so the 40-bit token
 cannot be guessed online. Browsers may only open the WebSocket from the page's own origin, so another web site
-open in the operator's browser cannot drive the robot through localhost.
+open in the operator's browser cannot drive the robot through localhost; and a server bound to localhost answers
+only requests addressed to localhost, so no site can reach it by pointing its own name at 127.0.0.1 (DNS
+rebinding).
 
 Camera frames are sent newest-first: the server keeps only the latest frame, and a connection still busy sending
 the previous one skips to whatever is newest when it is done (``frames_skipped``).
@@ -72,6 +74,7 @@ COUNTERS = (
     "locked_out",  # connections refused after repeated wrong tokens
     "unauthenticated",  # first message not a hello, or none within the hello timeout
     "forbidden_origin",  # WebSocket opened from another site's page
+    "forbidden_host",  # a localhost server asked under another name (DNS rebinding)
     "superseded",  # connections closed because a newer one authenticated
     "frames_published",
     "frames_sent",
@@ -94,6 +97,13 @@ def new_token() -> str:
     """A pairing token: 8 characters from a 32-letter alphabet (40 bits), shown as XXXX-XXXX."""
     raw = "".join(secrets.choice(TOKEN_ALPHABET) for _ in range(8))
     return f"{raw[:4]}-{raw[4:]}"
+
+
+def _is_local_name(host_header: str) -> bool:
+    """Whether a Host header names this machine's loopback (localhost, 127.x, [::1]), port aside."""
+    host = host_header.rsplit(":", 1)[0] if not host_header.endswith("]") else host_header
+    host = host.strip("[]")
+    return host == "localhost" or is_loopback(host)
 
 
 def _canonical_token(token: str) -> str:
@@ -233,7 +243,7 @@ class VRServer:
 
     async def _startup(self, ssl_context) -> None:
         self._wake = asyncio.Event()
-        app = web.Application(client_max_size=MAX_MESSAGE_BYTES)
+        app = web.Application(client_max_size=MAX_MESSAGE_BYTES, middlewares=[self._host_guard])
         app.router.add_get("/", self._index)
         app.router.add_get("/ws", self._websocket)
         app.router.add_get("/favicon.ico", self._no_icon)
@@ -321,6 +331,13 @@ class VRServer:
         response.headers["Content-Security-Policy"] = (
             f"default-src 'self'; img-src 'self' blob: data:; connect-src 'self'{sockets}; frame-ancestors 'none'"
         )
+
+    @web.middleware
+    async def _host_guard(self, request: web.Request, handler) -> web.StreamResponse:
+        if not self.requires_token and not _is_local_name(request.host):
+            self.count("forbidden_host")
+            return web.Response(status=403, text="this server answers to localhost only")
+        return await handler(request)
 
     async def _no_icon(self, request: web.Request) -> web.StreamResponse:
         return web.Response(status=204)  # browsers ask; an error would only clutter the page's console
