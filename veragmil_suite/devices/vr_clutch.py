@@ -67,7 +67,7 @@ class Clutch:
         mode (str): "relative" or "absolute"
         max_linear_speed (float): velocity clamp on the commanded position (m/s, simulated time)
         max_angular_speed (float): velocity clamp on the commanded orientation (rad/s)
-        camera_yaw (float): screen-forward heading of the streamed camera (``vr_frames.camera_heading``)
+        camera_yaw (float): forward heading of the streamed camera (``vr_frames.camera_heading``)
     """
 
     def __init__(

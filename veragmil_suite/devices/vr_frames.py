@@ -14,7 +14,7 @@ teleoperation map therefore also turns about the vertical so that the operator's
     M = Rz(camera_heading - operator_heading) @ XR_TO_ROBOT
 
 With it, a hand moving forward moves the end-effector up the image and a hand moving right moves it to the
-image's right, whatever way the camera looks. Position deltas map as ``M @ dp``; rotation deltas (rotations
+image's right, whatever way the camera looks down. Position deltas map as ``M @ dp``; rotation deltas (rotations
 expressed in the fixed XR frame) map by conjugation, ``M @ R @ M.T``.
 
 Quaternions are (x, y, z, w), as in WebXR and robosuite.
