@@ -322,3 +322,46 @@ def test_fast_scoop_does_not_tunnel_grains_through_spoon_or_bowl():
                 assert -c.dist < radii[grain_of_body[body]] / 3
     assert env.scoop_info()["physics_error"] == ""
     env.close()
+
+
+def test_step_observes_and_scores_the_state_reached():
+    """step()'s observation, reward and info are those of the state it returns, as a replay of the states computes
+    them (robosuite alone would sample observables a substep into the control period, on stale kinematics)."""
+    env = make_env(food="peas")
+    env.reset()
+    action = np.zeros(env.action_dim)
+    action[2] = -0.5
+    for _ in range(3):
+        obs, reward, _, info = env.step(action)
+    eef = env.sim.data.site_xpos[env.eef_site_id].copy()
+    state = env.sim.get_state().flatten()
+    env.sim.set_state_from_flattened(state)
+    env.sim.forward()
+    np.testing.assert_array_equal(obs["robot0_eef_pos"], eef)
+    fresh = env._get_observations(force_update=True)
+    for key in ("robot0_eef_pos", "robot0_joint_pos", "desired_pose", "spoon_load", "spoon_to_desired_pos"):
+        np.testing.assert_array_equal(obs[key], fresh[key], err_msg=key)
+    assert info["grains_in_spoon"] == env.scoop_info()["grains_in_spoon"]
+    assert reward == env.reward(action)
+    env.close()
+
+
+def test_reloading_another_variants_xml_uses_that_piles_grain_sizes():
+    """A demo's XML loaded into an env that drew another pile variant last: metrics use the demo's grain volumes."""
+    env = make_env("barley", seed=0, pile_variants=3)
+    seen = {}
+    for _ in range(30):
+        env.reset()
+        seen.setdefault(env.pile_variant, (env.sim.model.get_xml(), env.grain_volumes_m3.copy()))
+        if len(seen) == 3:
+            break
+    assert len(seen) == 3
+    for variant, (xml, volumes) in seen.items():
+        env.reset_from_xml_string(xml)
+        assert env.pile_variant == variant
+        np.testing.assert_array_equal(env.grain_volumes_m3, volumes)
+    other = make_env("rice", n_grains=env.n_grains, seed=0)
+    other.reset()
+    with pytest.raises(ValueError, match="pile variants of 'barley'"):
+        env.reset_from_xml_string(other.sim.model.get_xml().replace("rice", "barley"))
+    env.close(), other.close()

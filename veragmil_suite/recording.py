@@ -113,20 +113,12 @@ def restart_from_current_state(env) -> tuple[dict, str]:
     return observe(env), xml
 
 
-def reset_to_demo(env, model_xml: str, state: np.ndarray, pile_variant: int | None = None, max_resets: int = 40):
-    """reset_to for a recorded demo, first drawing resets until the env's own pile matches the demo's.
+def reset_to_demo(env, model_xml: str, state: np.ndarray) -> dict:
+    """reset_to for a recorded demo; returns robosuite's observation there.
 
-    ScoopGranular keeps per-grain sizes (volumes for the metrics, the spoon-load margin) from the pile variant of
-    its last hard reset, not from the XML it reloads; metrics and object observations of a replay are only right
-    when that variant is the demo's (``pile_variant`` attribute). Physics (the states) replays exactly either way.
+    ScoopGranular finds which pile variant the demo's XML holds, so the metrics and object observations of a
+    replay use that pile's grain sizes whatever the environment drew last.
     """
-    if pile_variant is not None and getattr(env, "pile_variants", 1) > 1:
-        for _ in range(max_resets):
-            if env.pile_variant == pile_variant:
-                break
-            env.reset()
-        else:
-            raise DatasetError(f"the environment drew no pile variant {pile_variant} in {max_resets} resets")
     reset_to(env, model_xml, state)
     return observe(env)
 
@@ -166,12 +158,11 @@ def robomimic_obs(env, raw: dict) -> dict:
 
 
 def observe(env) -> dict:
-    """robosuite's observation of the simulation's current state.
+    """robosuite's observation of the simulation's current state, after a state was set by hand.
 
-    Not the observation ``env.step()`` returns: robosuite samples observables during the control period's
-    substeps, and lite physics leaves kinematics a substep behind, so that one lags the state reached (by about
-    half a control step here). Recording this one makes every observation a function of its recorded state:
-    what robomimic's dataset_states_to_obs extracts, and what replays re-render.
+    The same observation ``env.step()`` returns for the state it reached (ScoopGranular observes at the end of
+    each control step), so every recorded observation is a function of its recorded state: what robomimic's
+    dataset_states_to_obs extracts, and what replays re-render.
     """
     env.sim.forward()
     return env._get_observations(force_update=True)
@@ -232,13 +223,12 @@ class EpisodeRecorder:
         return raw
 
     def step(self, action: np.ndarray):
-        """env.step(action), recorded. Returns (obs, reward, done, info), obs that of the state reached (observe)."""
+        """env.step(action), recorded. Returns (obs, reward, done, info), obs that of the state reached."""
         if self.obs is None:
             raise RuntimeError("EpisodeRecorder.reset() must come before step()")
         action = np.asarray(action, dtype=np.float64)
         state = self.env.sim.get_state().flatten()
-        _, reward, done, info = self.env.step(action)
-        raw = observe(self.env)
+        raw, reward, done, info = self.env.step(action)
         after = robomimic_obs(self.env, raw)
         self._states.append(state)
         self._actions.append(action.copy())

@@ -28,10 +28,9 @@ robosuite 1.5 environments (EnvRobosuite's methods are replaced, so every robomi
       observations are upright under either convention.
     - ``get_state`` saved ``sim.model.get_xml()``, which in robosuite 1.5 returns the XML of the model compiled
       last in the process (mj_saveLastXML), not this simulation's: each sim now remembers its source XML.
-    - the observation ``step`` returned lagged the state reached: robosuite's lite physics leaves kinematics a
-      substep behind, and under ScoopGranular's 1/240 s step robosuite samples observables at the first substep
-      of the control period (a control step old). Rollouts observe the state reached, as our datasets record it
-      and as dataset_states_to_obs extracts it (cameras render once more per step).
+    - (not a gap of robomimic's, noted here because rollouts rely on it) robosuite's step() observation lags the
+      state reached under lite physics and 1/240 s substeps; ScoopGranular observes at the end of each control
+      step instead, so rollouts see what our datasets record and dataset_states_to_obs extracts.
     - ``step`` always reported done=False: an environment's own termination (a physics blow-up in ScoopGranular)
       now ends the rollout instead of stepping a broken simulation to the horizon.
     - every offscreen renderer probed for EGL GPUs (egl_probe), even with MUJOCO_GL=osmesa: only EGL probes.
@@ -306,13 +305,9 @@ def _env_init(
 
 
 def _env_step(self, action):
-    """
-    Steps the environment and observes the state reached; done is the environment's own termination (the horizon
-    is the caller's). The forward pass changes nothing in the simulation: trajectories stay bit-identical.
-    """
-    _, reward, done, info = self.env.step(action)
-    self.env.sim.forward()
-    return self.get_observation(), reward, bool(done) or self.is_done(), info
+    """Steps the environment; done is the environment's own termination (the horizon is the caller's)."""
+    raw, reward, done, info = self.env.step(action)
+    return self.get_observation(raw), reward, bool(done) or self.is_done(), info
 
 
 def _env_get_observation(self, di=None):

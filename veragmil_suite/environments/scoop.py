@@ -295,8 +295,7 @@ class ScoopGranular(ManipulationEnv):
         # One of a few piles per food: each is settled once per machine (veragmil_suite.settling), and the same
         # seed always draws the same one, so the same seed gives the same XML.
         self.pile_variant = int(self.rng.integers(self.pile_variants))
-        pile_rng = np.random.default_rng([self.pile_variant, self.n_grains, *map(ord, self.food.name)])
-        self.grain_pile = GrainPile(self.food, self.n_grains, pile_rng)
+        self.grain_pile = self._pile(self.pile_variant)
 
         self.model = ScoopTask(
             mujoco_arena=mujoco_arena,
@@ -306,6 +305,39 @@ class ScoopGranular(ManipulationEnv):
             grain_home_qpos=self.grain_pile.lattice_qpos(self.bowl_shape, self._nominal_rim_center()),
             solver_options=self.physics_solver_options,
             fast_rendering=self.fast_rendering,
+        )
+
+    def _pile(self, variant: int) -> GrainPile:
+        """Pile variant ``variant`` of this food and grain count (the same on every machine)."""
+        return GrainPile(
+            self.food, self.n_grains, np.random.default_rng([variant, self.n_grains, *map(ord, self.food.name)])
+        )
+
+    def _match_loaded_pile(self) -> None:
+        """
+        Points grain_pile at the variant the simulation was built from.
+
+        reset_from_xml_string (robomimic's reset_to, playback) may load a recorded XML of another variant than the
+        one drawn last, and the grain volumes and sizes the metrics use must be that XML's.
+        """
+        model = self.sim.model
+        loaded = model.geom_size[model.body_geomadr[self.grain_body_ids]]
+
+        # saved XML keeps 6 significant digits; variants' sizes are drawn from a continuous range
+        def first_geom_sizes(pile: GrainPile) -> np.ndarray:
+            return np.array([np.pad(g[0]["size"], (0, 3 - len(g[0]["size"]))) for g in pile.geoms])
+
+        if np.allclose(first_geom_sizes(self.grain_pile), loaded, rtol=1e-5, atol=0):
+            return
+        for variant in range(self.pile_variants):
+            pile = self._pile(variant)
+            if np.allclose(first_geom_sizes(pile), loaded, rtol=1e-5, atol=0):
+                self.pile_variant, self.grain_pile = variant, pile
+                return
+        raise ValueError(
+            f"the loaded model's grains match none of the {self.pile_variants} pile variants of "
+            f"{self.food.name!r} with {self.n_grains} grains: make the environment with the food, n_grains and "
+            "pile_variants the model was recorded with"
         )
 
     def _setup_references(self):
@@ -322,6 +354,7 @@ class ScoopGranular(ManipulationEnv):
         self.grain_body_ids = np.array([model.body_name2id(n) for n in self.grain_pile.body_names])
         self.grain_qpos_adr = np.array([model.get_joint_qpos_addr(n)[0] for n in self.grain_pile.joint_names])
         self.grain_qvel_adr = np.array([model.get_joint_qvel_addr(n)[0] for n in self.grain_pile.joint_names])
+        self._match_loaded_pile()
         gripper = self.robots[0].gripper["right"]
         self.spoon_site_id = model.site_name2id(gripper.important_sites["spoon_frame"])
         self.eef_site_id = self.robots[0].eef_site_id["right"]
@@ -480,6 +513,9 @@ class ScoopGranular(ManipulationEnv):
                 - (bool) whether the current episode is completed or not
                 - (dict) info about the step
         """
+        # lite physics leaves kinematics a substep behind the state reached (step2 integrates after them): one
+        # forward per control step brings them up to date and changes nothing in the trajectory
+        self.sim.forward()
         self._physics_error = self._physics_error or self._physics_check()
         if self._physics_error:
             reward, done, info = 0.0, True, {}
@@ -487,6 +523,21 @@ class ScoopGranular(ManipulationEnv):
             reward, done, info = super()._post_action(action)
         info.update(self.scoop_info())
         return reward, done, info
+
+    def _update_observables(self, force=False):
+        """
+        Samples observables once per control step, at its end (see _get_observations).
+
+        robosuite samples them inside the substep loop, where float time sums (12 x 1/240 s falls just short of
+        1/20 s) move the sample to the second substep of the period: step() would return an observation almost a
+        control step old, and cameras would render twice per step.
+        """
+        if force:
+            super()._update_observables(force=True)
+
+    def _get_observations(self, force_update=False):
+        """Observations of the state reached, so an observation is a function of the recorded state."""
+        return super()._get_observations(force_update=True)
 
     def scoop_info(self) -> dict:
         """The task's metrics now: grains in the spoon and spilled, spilled volume, completion time, success."""

@@ -389,8 +389,7 @@ class DemoEnvs:
     def start(self, g: h5py.Group):
         """The demo's env, reset to its first state; returns (env, observation)."""
         env = self.for_demo(g)
-        variant = int(g.attrs["pile_variant"]) if "pile_variant" in g.attrs else None
-        obs = reset_to_demo(env, _text(g.attrs["model_file"]), g["states"][0], variant)
+        obs = reset_to_demo(env, _text(g.attrs["model_file"]), g["states"][0])
         return env, obs
 
     def close(self):
