@@ -18,11 +18,16 @@ setup(
     version="0.1.0",
     description="robosuite task plugin for scooping and carrying granular food with a spoon (VERAGMIL on MuJoCo)",
     python_requires=">=3.10",
-    packages=find_packages(include=["veragmil_suite", "veragmil_suite.*"]) + ["veragmil_suite.assets"],
-    # models/assets stays at the repository's top level and is installed as the package data
-    # of veragmil_suite.assets, so a non-editable install finds it from any directory.
-    package_dir={"veragmil_suite.assets": "models/assets"},
-    package_data={"veragmil_suite.assets": ["**/*"], "veragmil_suite": ["devices/web/**/*"]},
+    packages=find_packages(include=["veragmil_suite", "veragmil_suite.*"])
+    + ["veragmil_suite.assets", "veragmil_suite.configs"],
+    # models/assets and configs/json stay at the repository's top level and are installed as the package data
+    # of veragmil_suite.assets and veragmil_suite.configs, so a non-editable install finds them from any directory.
+    package_dir={"veragmil_suite.assets": "models/assets", "veragmil_suite.configs": "configs/json"},
+    package_data={
+        "veragmil_suite.assets": ["**/*"],
+        "veragmil_suite.configs": ["*.json"],
+        "veragmil_suite": ["devices/web/**/*"],
+    },
     include_package_data=True,
     install_requires=[
         "robosuite==1.5.2",

@@ -1,4 +1,4 @@
-"""Where the package's MuJoCo assets are, installed or in a source checkout."""
+"""Where the package's data is (MuJoCo assets, robomimic configs), installed or in a source checkout."""
 
 from __future__ import annotations
 
@@ -17,4 +17,20 @@ def asset_path(relative: str) -> str:
     path = assets_root() / relative
     if not path.exists():
         raise FileNotFoundError(f"veragmil_suite asset {relative!r} not found under {assets_root()}")
+    return str(path)
+
+
+def configs_root() -> Path:
+    """``veragmil_suite/configs`` when installed from a wheel, else the checkout's top-level ``configs/json``."""
+    package = Path(__file__).resolve().parent
+    installed = package / "configs"
+    return installed if installed.is_dir() else package.parent / "configs" / "json"
+
+
+def config_path(name: str) -> str:
+    """Absolute path of one of our robomimic configs, e.g. ``config_path("bc_rnn")``."""
+    path = configs_root() / f"{name}.json"
+    if not path.exists():
+        accepted = sorted(p.stem for p in configs_root().glob("*.json"))
+        raise FileNotFoundError(f"no robomimic config {name!r} under {configs_root()}; accepted: {accepted}")
     return str(path)
