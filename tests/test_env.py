@@ -334,10 +334,13 @@ def test_step_observes_and_scores_the_state_reached():
     for _ in range(3):
         obs, reward, _, info = env.step(action)
     eef = env.sim.data.site_xpos[env.eef_site_id].copy()
+    cameras = env.sim.data.cam_xpos.copy()
     state = env.sim.get_state().flatten()
     env.sim.set_state_from_flattened(state)
     env.sim.forward()
     np.testing.assert_array_equal(obs["robot0_eef_pos"], eef)
+    np.testing.assert_allclose(env.sim.data.site_xpos[env.eef_site_id], eef, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(env.sim.data.cam_xpos, cameras, rtol=0, atol=1e-12)  # eye-in-hand moved with the arm
     fresh = env._get_observations(force_update=True)
     for key in ("robot0_eef_pos", "robot0_joint_pos", "desired_pose", "spoon_load", "spoon_to_desired_pos"):
         np.testing.assert_array_equal(obs[key], fresh[key], err_msg=key)
