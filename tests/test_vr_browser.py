@@ -13,8 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import robosuite
-from vr_helpers import run_loop
+from vr_helpers import make_lift_env, run_loop
 
 from veragmil_suite.devices import VRDevice
 
@@ -41,16 +40,7 @@ MOVES = [([0.10, 0.0, 0.0], [0.0, 1.0, 0.0]), ([0.0, 0.08, 0.0], [0.0, 0.0, 1.0]
 
 
 def test_emulated_quest_in_chromium_drives_the_arm_and_sees_the_camera():
-    env = robosuite.make(
-        "Lift",
-        robots="XArm7",
-        has_renderer=False,
-        has_offscreen_renderer=True,
-        use_camera_obs=False,
-        control_freq=20,
-        ignore_done=True,
-    )
-    env.reset()
+    env = make_lift_env()
     # the 200 ms staleness rule is tested in test_vr_device.py; a browser sharing two loaded cores with the
     # simulator may skip frames, and this test is about the path through the browser. iwer marks every
     # controller pose as emulatedPosition, which a real Quest does only for a controller it has lost

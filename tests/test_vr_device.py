@@ -9,9 +9,8 @@ import time
 
 import numpy as np
 import pytest
-import robosuite
 from PIL import Image
-from vr_helpers import HAND, Client, controller, eef_pose, lockstep, run_loop
+from vr_helpers import HAND, Client, controller, eef_pose, lockstep, make_lift_env, run_loop
 
 from veragmil_suite.devices import VRDevice
 from veragmil_suite.devices import vr_frames as F
@@ -19,16 +18,7 @@ from veragmil_suite.devices import vr_frames as F
 
 @pytest.fixture(scope="module")
 def rig():
-    env = robosuite.make(
-        "Lift",
-        robots="XArm7",
-        has_renderer=False,
-        has_offscreen_renderer=True,
-        use_camera_obs=False,
-        control_freq=20,
-        ignore_done=True,
-    )
-    env.reset()
+    env = make_lift_env()
     device = VRDevice(env, port=0, camera_name="agentview", verbose=False)
     yield env, device
     device.close()

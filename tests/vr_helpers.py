@@ -9,6 +9,23 @@ from collections.abc import Callable
 from veragmil_suite.devices.vr_client import HAND, IDENTITY, Client, controller, pose_message  # noqa: F401
 
 
+def make_lift_env():
+    """robosuite's Lift with XArm7 at 20 Hz, rendering offscreen for the stream: a cheap arm to teleoperate."""
+    import robosuite
+
+    env = robosuite.make(
+        "Lift",
+        robots="XArm7",
+        has_renderer=False,
+        has_offscreen_renderer=True,
+        use_camera_obs=False,
+        control_freq=20,
+        ignore_done=True,
+    )
+    env.reset()
+    return env
+
+
 def env_action(env, device, action_dict: dict):
     """The env.step() vector from an input2action() dict, as robosuite's collect_human_demonstrations does."""
     robot = env.robots[device.active_robot]

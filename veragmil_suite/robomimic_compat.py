@@ -196,31 +196,20 @@ def robomimic_observation(env, raw: dict | None = None, postprocess: bool = Fals
     what policies see in rollouts; with postprocess=True, the rgb and depth keys robomimic's ObsUtils knows are
     prepared for the networks (channels first, scaled).
     """
-    import robosuite.macros
     from robomimic.utils import obs_utils
+
+    from veragmil_suite.recording import robomimic_obs
 
     if raw is None:
         raw = env._get_observations(force_update=True)
-    flip = robosuite.macros.IMAGE_CONVENTION == "opengl"
-    modalities = obs_utils.OBS_KEYS_TO_MODALITIES or {}
-    obs = {}
-    for key, value in raw.items():
-        if key.endswith("-state"):
-            if key == "object-state":
-                obs["object"] = np.array(value)
-            continue
-        value = np.array(value)
-        if value.size == 0:
-            continue
-        observable = env._observables.get(key)
-        if observable is not None and observable.modality == "image":
-            if flip:
-                value = np.ascontiguousarray(value[::-1])
+    obs = robomimic_obs(env, raw)
+    if postprocess:
+        modalities = obs_utils.OBS_KEYS_TO_MODALITIES or {}
+        for key, value in obs.items():
             # dict.get: robomimic's mapping registers unknown keys as low_dim on [] lookups
             modality = dict.get(modalities, key)
-            if postprocess and modality in ("rgb", "depth"):
-                value = obs_utils.process_obs(obs=value, obs_modality=modality)
-        obs[key] = value
+            if modality in ("rgb", "depth"):
+                obs[key] = obs_utils.process_obs(obs=value, obs_modality=modality)
     return obs
 
 
