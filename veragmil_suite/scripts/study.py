@@ -13,7 +13,9 @@ Tables II and III (markdown, CSV, JSON) and a bar chart land in <output-dir>/eva
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+import time
 
 from veragmil_suite.foods import FOODS, TRAINING_FOODS, UNSEEN_FOODS
 from veragmil_suite.pipeline import ALGO_CONFIGS, PipelineSettings, StageError, run_pipeline
@@ -23,7 +25,12 @@ def add_pipeline_arguments(p: argparse.ArgumentParser, defaults: PipelineSetting
     """The options study and quickstart share, with ``defaults`` shown in --help."""
     from veragmil_suite.expert import PROFILES
 
-    p.add_argument("--output-dir", default=defaults.output_dir, help="where data, runs and tables go")
+    p.add_argument(
+        "--output-dir",
+        default=argparse.SUPPRESS,
+        help=f"where data, runs and tables go (default: {defaults.output_dir}/<date-time>: no run overwrites another)",
+    )
+    p.set_defaults(output_base=defaults.output_dir)
     p.add_argument("--profiles", nargs="+", choices=sorted(PROFILES), default=defaults.profiles)
     p.add_argument("--algos", nargs="+", choices=sorted(ALGO_CONFIGS), default=defaults.algos)
     p.add_argument("--train-foods", nargs="+", choices=sorted(FOODS), default=defaults.train_foods)
@@ -40,7 +47,7 @@ def add_pipeline_arguments(p: argparse.ArgumentParser, defaults: PipelineSetting
 
 def settings_from_args(args: argparse.Namespace) -> PipelineSettings:
     return PipelineSettings(
-        output_dir=args.output_dir,
+        output_dir=getattr(args, "output_dir", None) or os.path.join(args.output_base, time.strftime("%Y%m%d-%H%M%S")),
         profiles=args.profiles,
         algos=args.algos,
         train_foods=args.train_foods,
