@@ -25,6 +25,7 @@ def run_expert_episode(
     import robosuite
 
     import veragmil_suite  # noqa: F401
+    from veragmil_suite.evaluation import run_until_done
     from veragmil_suite.expert import ScriptedScooper
     from veragmil_suite.recording import EpisodeRecorder, episode_metrics
 
@@ -37,23 +38,15 @@ def run_expert_episode(
     recorder = EpisodeRecorder(env)
     start = time.perf_counter()
     obs = recorder.reset()
-    hold = int(round(success_hold_s * env.control_freq))
-    streak, reason, info, peak = 0, "horizon", {}, 0
-    while True:
-        if expert.done:
-            reason = "gave up"
-            break
-        obs, _, done, info = recorder.step(expert.act(obs))
-        peak = max(peak, info["grains_in_spoon"])
-        streak = streak + 1 if info["success"] else 0
-        if info["physics_error"]:
-            reason = "physics"
-            break
-        if streak >= hold:
-            reason = "success"
-            break
-        if done:
-            break
+    out = run_until_done(
+        lambda o: None if expert.done else expert.act(o),
+        recorder.step,
+        obs,
+        env.control_freq,
+        env.horizon,
+        success_hold_s=success_hold_s,
+    )
+    info, reason, peak = out["info"], out["end_reason"], out["peak_grains_in_spoon"]
     env.close()
     out = episode_metrics(info)
     out.update(

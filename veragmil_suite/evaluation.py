@@ -1,0 +1,684 @@
+"""
+Scoring agents on ScoopGranular and writing the paper's Tables II and III.
+
+An agent is a robomimic checkpoint (``*.pth``), the scripted expert (``expert`` or ``expert:<profile>``) or a
+recorded dataset (``dataset:<file.hdf5>``, e.g. human demonstrations: its demos' stored metrics, no rollouts).
+Episode ``i`` of a food runs with env seed ``seed + i`` for every agent, so all agents meet the same bowls and piles.
+Episodes run in parallel worker processes, one task per (agent, food, episode).
+
+An episode ends once success has held for ``SUCCESS_HOLD_S`` (as veragmil-collect ends a demonstration), at the
+horizon, when the agent gives up (the expert after its longest hold) or at a physics error. Its success is that of
+the last step, as recorded demos store it.
+
+Table II: success % per food, grouped seen (training) / unseen, with per-group and overall averages (each food
+weighs the same). Table III: spilled pieces (mean +- std over all episodes) and completion time. The paper reports
+the time of successful runs, so a failure's time (its episode length, kept in episodes.csv) is left out of the
+mean; with no success the cell is "-" (NaN in table.csv).
+"""
+
+from __future__ import annotations
+
+import copy
+import csv
+import io
+import json
+import math
+import multiprocessing
+import os
+import time
+import traceback
+from collections.abc import Callable
+from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from veragmil_suite.foods import TRAINING_FOODS, UNSEEN_FOODS
+
+ALL_FOODS: tuple[str, ...] = TRAINING_FOODS + UNSEEN_FOODS
+SEEN_LABEL = "seen (training)"
+UNSEEN_LABEL = "unseen"
+# an episode counts as done once success has held this long (veragmil-collect's default --success-hold)
+SUCCESS_HOLD_S = 1.0
+# the robot of the expert's environment (checkpoints bring their own env_args)
+EXPERT_ROBOT = "XArm7"
+VIDEO_SIZE = 256
+DEFAULT_VIDEO_CAMERA = "overhead"
+# env_kwargs of a checkpoint's training data that describe its food, not the robot: replaced per evaluated food
+FOOD_KWARGS = ("food", "n_grains", "seed")
+MISSING = "-"
+
+EPISODE_FIELDS = (
+    "agent",
+    "food",
+    "episode",
+    "seed",
+    "success",
+    "grains_spilled",
+    "spilled_volume_cm3",
+    "completion_time_s",
+    "steps",
+    "end_reason",
+    "physics_error",
+    "grains_in_spoon",
+    "spill_fraction",
+    "wall_s",
+)
+
+
+class EvaluationError(RuntimeError):
+    """An episode failed in a worker; the message carries the worker's traceback."""
+
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# Agents                                                                                                           #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+@dataclass(frozen=True)
+class AgentSpec:
+    """What an agent column scores: kind "checkpoint", "expert" or "dataset", and its path or profile."""
+
+    kind: str
+    target: str
+
+    @property
+    def default_name(self) -> str:
+        if self.kind == "expert":
+            return "expert" if self.target == "expert" else f"expert:{self.target}"
+        return Path(self.target).stem
+
+
+SPEC_HELP = "a robomimic checkpoint (*.pth), 'expert', 'expert:<profile>' or 'dataset:<file.hdf5>'"
+
+
+def parse_spec(spec: str) -> AgentSpec:
+    """An agent SPEC, checked now so a bad one fails before any work; ValueError names the accepted forms."""
+    from veragmil_suite.expert import PROFILES
+
+    spec = str(spec).strip()
+    if spec == "expert" or spec.startswith("expert:"):
+        profile = spec.partition(":")[2] or "expert"
+        if profile not in PROFILES:
+            accepted = ", ".join(PROFILES)
+            raise ValueError(f"unknown expert profile {profile!r} in {spec!r}; accepted profiles: {accepted}")
+        return AgentSpec("expert", profile)
+    if spec.startswith("dataset:"):
+        path = spec[len("dataset:") :]
+        if not Path(path).is_file():
+            raise ValueError(f"dataset {path!r} not found (agent {spec!r}); an agent is {SPEC_HELP}")
+        return AgentSpec("dataset", path)
+    if spec.endswith(".pth"):
+        if not Path(spec).is_file():
+            raise ValueError(f"checkpoint {spec!r} not found; an agent is {SPEC_HELP}")
+        return AgentSpec("checkpoint", spec)
+    raise ValueError(f"unrecognized agent {spec!r}; an agent is {SPEC_HELP}")
+
+
+def parse_agent_argument(text: str) -> tuple[str, str]:
+    """``NAME=SPEC`` or ``SPEC`` (named after the checkpoint's file stem, "expert" or the dataset's stem) as
+    (name, SPEC), the SPEC checked."""
+    name, sep, spec = text.partition("=")
+    if not sep or not name or name.startswith(("dataset:", "expert:")) or "/" in name:
+        return parse_spec(text).default_name, text
+    parse_spec(spec)
+    return name, spec
+
+
+def check_foods(foods: list[str]) -> list[str]:
+    """The foods to evaluate, each known; ValueError names the accepted ones."""
+    from veragmil_suite.foods import FOODS
+
+    unknown = [f for f in foods if f not in FOODS]
+    if unknown:
+        raise ValueError(f"unknown food(s) {', '.join(unknown)}; accepted foods: {', '.join(FOODS)}")
+    if not foods:
+        raise ValueError(f"no foods to evaluate; accepted foods: {', '.join(FOODS)}")
+    return list(dict.fromkeys(foods))
+
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# One episode                                                                                                      #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+def run_until_done(
+    act: Callable[[dict], np.ndarray | None],
+    step: Callable[[np.ndarray], tuple],
+    obs: dict,
+    control_freq: float,
+    horizon: int,
+    success_hold_s: float = SUCCESS_HOLD_S,
+    on_step: Callable[[], None] | None = None,
+) -> dict:
+    """
+    Steps an agent until success has held ``success_hold_s``, the horizon, a physics error or the agent gives up
+    (``act`` returns None). Returns the last info, steps taken, end_reason and the largest spoon load seen.
+    """
+    hold = max(1, int(round(success_hold_s * control_freq)))
+    streak, steps, peak, info, reason = 0, 0, 0, {}, "horizon"
+    while steps < horizon:
+        action = act(obs)
+        if action is None:
+            reason = "gave up"
+            break
+        obs, _, done, info = step(action)
+        steps += 1
+        if on_step is not None:
+            on_step()
+        peak = max(peak, int(info.get("grains_in_spoon", 0)))
+        streak = streak + 1 if info.get("success") else 0
+        if info.get("physics_error"):
+            reason = "physics"
+            break
+        if streak >= hold:
+            reason = "success"
+            break
+        if done:
+            break
+    return dict(info=info, steps=steps, end_reason=reason, peak_grains_in_spoon=peak)
+
+
+@dataclass(frozen=True)
+class EpisodeTask:
+    """One (agent, food, episode) for a worker."""
+
+    agent: str
+    spec: AgentSpec
+    food: str
+    episode: int
+    seed: int
+    horizon: int | None = None
+    env_kwargs: dict = field(default_factory=dict)
+    video_path: str | None = None
+    video_camera: str = DEFAULT_VIDEO_CAMERA
+
+
+_POLICIES: dict = {}  # per worker process: checkpoint path -> (RolloutPolicy, checkpoint dict)
+
+
+def _init_worker() -> None:
+    """Each worker runs one episode at a time on one core: one torch thread, software rendering."""
+    os.environ["MUJOCO_GL"] = "osmesa"
+    os.environ["PYOPENGL_PLATFORM"] = "osmesa"
+    os.environ["VERAGMIL_TORCH_THREADS"] = "1"
+    try:
+        import torch
+
+        torch.set_num_threads(1)
+    except ImportError:  # the expert alone needs no torch
+        pass
+
+
+def _expert_env(task: EpisodeTask):
+    import robosuite
+
+    import veragmil_suite  # noqa: F401
+    from veragmil_suite.expert import ScriptedScooper
+
+    kwargs = dict(robots=EXPERT_ROBOT, has_renderer=False, use_camera_obs=False)
+    kwargs.update(task.env_kwargs)
+    kwargs.update(food=task.food, seed=task.seed, has_offscreen_renderer=bool(task.video_path))
+    if task.horizon is not None:
+        kwargs["horizon"] = task.horizon
+    env = robosuite.make("ScoopGranular", **kwargs)
+    expert = ScriptedScooper(env, task.spec.target, seed=task.seed)
+    obs = env.reset()
+    expert.reset()
+    return env, obs, lambda o: None if expert.done else expert.act(o), env.step
+
+
+def _policy(path: str):
+    if path not in _POLICIES:
+        import torch
+
+        from veragmil_suite import robomimic_compat
+
+        robomimic_compat.install()
+        import robomimic.utils.file_utils as FileUtils
+
+        _POLICIES[path] = FileUtils.policy_from_checkpoint(ckpt_path=path, device=torch.device("cpu"))
+    return _POLICIES[path]
+
+
+def _checkpoint_env(task: EpisodeTask):
+    """robomimic's env of the checkpoint (its robot, controller and control rate) on the evaluated food."""
+    import robomimic.utils.env_utils as EnvUtils
+    import torch
+
+    policy, ckpt = _policy(task.spec.target)
+    meta = copy.deepcopy(ckpt["env_metadata"])
+    kwargs = {k: v for k, v in meta["env_kwargs"].items() if k not in FOOD_KWARGS}
+    kwargs.update(task.env_kwargs)
+    kwargs.update(food=task.food, seed=task.seed)
+    if task.horizon is not None:
+        kwargs["horizon"] = task.horizon
+    meta["env_kwargs"] = kwargs
+    use_images = bool(ckpt["shape_metadata"]["use_images"])
+    env = EnvUtils.create_env_from_metadata(
+        env_meta=meta, render=False, render_offscreen=bool(task.video_path), use_image_obs=use_images
+    )
+    torch.manual_seed(task.seed)
+    np.random.seed(task.seed)
+    policy.start_episode()
+    obs = env.reset()
+    return env.env, obs, lambda o: policy(ob=o), env.step
+
+
+def run_episode(task: EpisodeTask) -> dict:
+    """Runs one episode of a checkpoint or expert agent; returns its record (EPISODE_FIELDS)."""
+    from veragmil_suite.recording import episode_metrics
+
+    start = time.perf_counter()
+    make = _expert_env if task.spec.kind == "expert" else _checkpoint_env
+    env, obs, act, step = make(task)
+    frames = []
+
+    def grab() -> None:
+        import robosuite.macros
+
+        frame = env.sim.render(camera_name=task.video_camera, width=VIDEO_SIZE, height=VIDEO_SIZE)
+        frames.append(frame[::-1] if robosuite.macros.IMAGE_CONVENTION == "opengl" else frame)
+
+    if task.video_path:
+        grab()
+    horizon = task.horizon if task.horizon is not None else int(env.horizon)
+    out = run_until_done(act, step, obs, env.control_freq, horizon, on_step=grab if task.video_path else None)
+    env.close()
+    if task.video_path:
+        import imageio
+
+        Path(task.video_path).parent.mkdir(parents=True, exist_ok=True)
+        imageio.mimsave(task.video_path, frames, fps=env.control_freq)
+    metrics = episode_metrics(out["info"])
+    return dict(
+        agent=task.agent,
+        food=task.food,
+        episode=task.episode,
+        seed=task.seed,
+        success=metrics["success"],
+        grains_spilled=metrics["grains_spilled"],
+        spilled_volume_cm3=metrics["spilled_volume_cm3"],
+        completion_time_s=metrics["completion_time_s"],
+        steps=out["steps"],
+        end_reason=out["end_reason"],
+        physics_error=metrics["physics_error"],
+        grains_in_spoon=metrics["grains_in_spoon"],
+        spill_fraction=metrics["spill_fraction"],
+        wall_s=time.perf_counter() - start,
+    )
+
+
+def _run_task(task: EpisodeTask) -> dict:
+    """Worker entry: the record, or an EvaluationError carrying this process's traceback."""
+    try:
+        return run_episode(task)
+    except Exception as e:  # noqa: BLE001 - re-raised in the parent with the worker's traceback
+        where = f"{task.agent} on {task.food}, episode {task.episode} (seed {task.seed})"
+        raise EvaluationError(f"{where} failed in a worker:\n{traceback.format_exc()}") from e
+
+
+def dataset_episodes(name: str, path: str, foods: list[str]) -> list[dict]:
+    """A recorded dataset's demos as episode records (their stored metrics), for the foods evaluated."""
+    from veragmil_suite.recording import demo_names, open_dataset
+
+    out = []
+    with open_dataset(path) as f:
+        data = f["data"]
+        file_food = json.loads(data.attrs["env_args"]).get("env_kwargs", {}).get("food", "")
+        counts: dict[str, int] = {}
+        for demo in demo_names(f):
+            a = data[demo].attrs
+            food = _text(a.get("food", file_food))
+            if food not in foods:
+                continue
+            index = counts[food] = counts.get(food, -1) + 1
+            steps = int(a["num_samples"])
+            out.append(
+                dict(
+                    agent=name,
+                    food=food,
+                    episode=index,
+                    seed=int(a["seed"]) if "seed" in a else None,
+                    success=bool(a.get("success", False)),
+                    grains_spilled=int(a.get("grains_spilled", 0)),
+                    spilled_volume_cm3=float(a.get("spilled_volume_cm3", 0.0)),
+                    completion_time_s=float(a.get("completion_time_s", 0.0)),
+                    steps=steps,
+                    end_reason=_text(a.get("end_reason", "recorded")),
+                    physics_error=_text(a.get("physics_error", "")),
+                    grains_in_spoon=int(a.get("grains_in_spoon", 0)),
+                    spill_fraction=float(a.get("spill_fraction", 0.0)),
+                    wall_s=0.0,
+                )
+            )
+    return out
+
+
+def _text(value) -> str:
+    return value.decode() if isinstance(value, bytes) else str(value)
+
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# Summaries and tables                                                                                             #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+def summarize(episodes: list[dict]) -> dict[tuple[str, str], dict]:
+    """Per (agent, food): success rate, spilled pieces mean and std (all episodes), completion time over successes."""
+    out = {}
+    for key in dict.fromkeys((e["agent"], e["food"]) for e in episodes):
+        rows = [e for e in episodes if (e["agent"], e["food"]) == key]
+        ok = [e for e in rows if e["success"]]
+        spilled = np.array([e["grains_spilled"] for e in rows], dtype=float)
+        times = np.array([e["completion_time_s"] for e in ok], dtype=float)
+        out[key] = dict(
+            agent=key[0],
+            food=key[1],
+            episodes=len(rows),
+            successes=len(ok),
+            success_rate=len(ok) / len(rows),
+            grains_spilled_mean=float(spilled.mean()),
+            grains_spilled_std=float(spilled.std()),
+            spilled_volume_cm3_mean=float(np.mean([e["spilled_volume_cm3"] for e in rows])),
+            completion_time_s_mean=float(times.mean()) if ok else math.nan,
+            completion_time_s_std=float(times.std()) if ok else math.nan,
+            physics_errors=sum(bool(e["physics_error"]) for e in rows),
+        )
+    return out
+
+
+def _mean(values: list[float]) -> float:
+    values = [v for v in values if not math.isnan(v)]
+    return float(np.mean(values)) if values else math.nan
+
+
+def _groups(foods: list[str]) -> list[tuple[str, list[str]]]:
+    seen = [f for f in foods if f in TRAINING_FOODS]
+    unseen = [f for f in foods if f not in TRAINING_FOODS]
+    return [(label, group) for label, group in ((SEEN_LABEL, seen), (UNSEEN_LABEL, unseen)) if group]
+
+
+def table_rows(summary: dict, agents: list[str], foods: list[str]) -> dict[str, list[dict]]:
+    """
+    Both tables as rows of numbers (NaN where an agent has no entry or no success): "table2" success % per food,
+    "table3" spilled pieces mean/std and completion time mean per food. Each group of foods is followed by its
+    average row, and the overall average closes the table; averages weigh each food the same.
+    """
+    table2, table3 = [], []
+    per_group = _groups(foods)
+    for label, group in per_group:
+        for food in group:
+            s = {a: summary.get((a, food)) for a in agents}
+            table2.append(
+                dict(group=label, food=food, **{a: 100 * s[a]["success_rate"] if s[a] else math.nan for a in agents})
+            )
+            row = dict(group=label, food=food)
+            for a in agents:
+                row[f"{a} spilled"] = s[a]["grains_spilled_mean"] if s[a] else math.nan
+                row[f"{a} spilled std"] = s[a]["grains_spilled_std"] if s[a] else math.nan
+                row[f"{a} time"] = s[a]["completion_time_s_mean"] if s[a] else math.nan
+            table3.append(row)
+        table2.append(_average_row(table2, label, group, f"{label} average"))
+        table3.append(_average_row(table3, label, group, f"{label} average"))
+    if len(per_group) > 1:
+        table2.append(_average_row(table2, "all", foods, "overall average"))
+        table3.append(_average_row(table3, "all", foods, "overall average"))
+    return dict(table2=table2, table3=table3)
+
+
+def _average_row(rows: list[dict], group: str, foods: list[str], label: str) -> dict:
+    """Mean over the rows of ``foods``, a food without an entry (NaN) left out; no std (it would mix foods)."""
+    food_rows = [r for r in rows if r["food"] in foods]
+    row = dict(group=group, food=label)
+    for c in (k for k in food_rows[0] if k not in ("group", "food")):
+        row[c] = math.nan if c.endswith(" std") else _mean([r[c] for r in food_rows])
+    return row
+
+
+def _fmt(value: float, digits: int = 1) -> str:
+    return MISSING if value is None or math.isnan(value) else f"{value:.{digits}f}"
+
+
+def markdown_tables(summary: dict, agents: list[str], foods: list[str]) -> str:
+    """Tables II and III as markdown (the paper's layout: rows are foods, one column per agent)."""
+    tables = table_rows(summary, agents, foods)
+    lines = ["Table II: success rate (%)", "", "| food | " + " | ".join(agents) + " |"]
+    lines.append("|---|" + "---:|" * len(agents))
+    group = None
+    for row in tables["table2"]:
+        if row["group"] != group and row["group"] != "all":
+            group = row["group"]
+            lines.append(f"| **{group}** |" + " |" * len(agents))
+        food = row["food"] if row["food"] in foods else f"*{row['food']}*"
+        lines.append(f"| {food} | " + " | ".join(_fmt(row[a], 0) for a in agents) + " |")
+    lines += [
+        "",
+        "Table III: spillage (pieces, mean ± std over all episodes) and completion time (s, mean over successes)",
+        "",
+        "| food | " + " | ".join(f"{a} spillage | {a} time (s)" for a in agents) + " |",
+        "|---|" + "---:|---:|" * len(agents),
+    ]
+    group = None
+    for row in tables["table3"]:
+        if row["group"] != group and row["group"] != "all":
+            group = row["group"]
+            lines.append(f"| **{group}** |" + " | |" * len(agents))
+        is_food = row["food"] in foods
+        cells = []
+        for a in agents:
+            spilled = _fmt(row[f"{a} spilled"])
+            if is_food and spilled != MISSING:
+                spilled += f" ± {_fmt(row[f'{a} spilled std'])}"
+            cells += [spilled, _fmt(row[f"{a} time"])]
+        lines.append(f"| {row['food'] if is_food else '*' + row['food'] + '*'} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def csv_tables(summary: dict, agents: list[str], foods: list[str]) -> str:
+    """Tables II and III as one CSV: a table column, then group, food and one column per agent and metric."""
+    tables = table_rows(summary, agents, foods)
+    columns = ["group", "food"]
+    columns += [f"{a} success %" for a in agents]
+    columns += [f"{a} {m}" for a in agents for m in ("spilled pieces mean", "spilled pieces std", "time s mean")]
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(columns)
+    for r2, r3 in zip(tables["table2"], tables["table3"]):
+        values = [r2["group"], r2["food"]] + [_csv_number(r2[a]) for a in agents]
+        for a in agents:
+            values += [_csv_number(r3[f"{a} spilled"]), _csv_number(r3[f"{a} spilled std"])]
+            values += [_csv_number(r3[f"{a} time"])]
+        writer.writerow(values)
+    return buf.getvalue()
+
+
+def _csv_number(value: float) -> str:
+    return "NaN" if math.isnan(value) else f"{value:.4g}"
+
+
+def _json_safe(value):
+    if isinstance(value, float) and math.isnan(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_json_safe(v) for v in value]
+    return value
+
+
+def plot_success(summary: dict, agents: list[str], foods: list[str], path: str) -> None:
+    """Bar chart of success % per food: one group of bars per food, one bar per agent."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    width = 0.8 / max(1, len(agents))
+    x = np.arange(len(foods))
+    fig, ax = plt.subplots(figsize=(max(4.0, 1.2 * len(foods) + 1), 3.5))
+    for i, agent in enumerate(agents):
+        rates = [100 * summary[(agent, f)]["success_rate"] if (agent, f) in summary else 0.0 for f in foods]
+        ax.bar(x + (i - (len(agents) - 1) / 2) * width, rates, width, label=agent)
+    ax.set_xticks(x, [f if f in TRAINING_FOODS else f"{f}\n(unseen)" for f in foods])
+    ax.set_ylabel("success (%)")
+    ax.set_ylim(0, 100)
+    ax.legend(fontsize="small")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+@dataclass
+class EvaluationResult:
+    """Every episode, the per (agent, food) summary, and the run's configuration."""
+
+    episodes: list[dict]
+    agents: list[str]
+    foods: list[str]
+    config: dict = field(default_factory=dict)
+    summary: dict = field(init=False)
+
+    def __post_init__(self):
+        self.summary = summarize(self.episodes)
+
+    def markdown(self) -> str:
+        return markdown_tables(self.summary, self.agents, self.foods)
+
+    def write(self, output_dir: str) -> dict[str, str]:
+        """Writes episodes.csv, results.json, table.md, table.csv and success.png; returns their paths."""
+        out = Path(output_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        paths = {name: str(out / name) for name in ("episodes.csv", "results.json", "table.md", "table.csv")}
+        with open(paths["episodes.csv"], "w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=EPISODE_FIELDS, extrasaction="ignore")
+            writer.writeheader()
+            writer.writerows(self.episodes)
+        results = dict(config=self.config, summary=list(self.summary.values()), episodes=self.episodes)
+        Path(paths["results.json"]).write_text(json.dumps(_json_safe(results), indent=2))
+        Path(paths["table.md"]).write_text(self.markdown())
+        Path(paths["table.csv"]).write_text(csv_tables(self.summary, self.agents, self.foods))
+        paths["success.png"] = str(out / "success.png")
+        plot_success(self.summary, self.agents, self.foods, paths["success.png"])
+        videos = sorted((out / "videos").glob("*.mp4")) if (out / "videos").is_dir() else []
+        paths.update({f"videos/{v.name}": str(v) for v in videos})
+        return paths
+
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# Running                                                                                                          #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+def _versions() -> dict[str, str]:
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = {}
+    for package in ("veragmil_suite", "robosuite", "robomimic", "mujoco", "torch", "numpy"):
+        try:
+            out[package] = version(package)
+        except PackageNotFoundError:
+            out[package] = "not installed"
+    return out
+
+
+def _video_name(agent: str, food: str, episode: int) -> str:
+    safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in agent)
+    return f"{safe}_{food}_{episode}.mp4"
+
+
+def evaluate(
+    agents: dict[str, str],
+    foods: list[str],
+    episodes: int,
+    processes: int = 2,
+    seed: int = 0,
+    horizon: int | None = None,
+    videos: int = 0,
+    output_dir: str | None = None,
+    progress: bool = True,
+    env_kwargs: dict | None = None,
+    video_camera: str = DEFAULT_VIDEO_CAMERA,
+) -> EvaluationResult:
+    """
+    Scores each agent (name -> SPEC, see parse_spec) for ``episodes`` episodes per food, env seeds ``seed + i``.
+
+    ``env_kwargs`` go to every environment (e.g. n_grains for a cheap scene); ``videos`` first episodes per
+    (agent, food) are saved as mp4 under ``output_dir``/videos. Writes the outputs when ``output_dir`` is given.
+
+    Raises:
+        ValueError: [unknown food, bad agent SPEC, non-positive sizes, videos without output_dir]
+        EvaluationError: [an episode failed in a worker (its traceback in the message)]
+    """
+    foods = check_foods(list(foods))
+    specs = {name: parse_spec(spec) for name, spec in agents.items()}
+    if not specs:
+        raise ValueError(f"no agents to evaluate; an agent is {SPEC_HELP}")
+    if int(episodes) < 1 or int(processes) < 1:
+        raise ValueError(f"episodes and processes must be positive integers, got {episodes} and {processes}")
+    if horizon is not None and int(horizon) < 1:
+        raise ValueError(f"horizon must be a positive integer, got {horizon}")
+    if videos and output_dir is None:
+        raise ValueError("videos need an output_dir to be written to")
+    video_dir = Path(output_dir) / "videos" if output_dir is not None else None
+    records: list[dict] = []
+    tasks = []
+    # episode-major order: every agent and food progresses together, and a slow food does not come last
+    for i in range(int(episodes)):
+        for name, spec in specs.items():
+            if spec.kind == "dataset":
+                continue
+            for food in foods:
+                video = str(video_dir / _video_name(name, food, i)) if i < videos else None
+                task = EpisodeTask(name, spec, food, i, seed + i, horizon, dict(env_kwargs or {}), video, video_camera)
+                tasks.append(task)
+    for name, spec in specs.items():
+        if spec.kind == "dataset":
+            records += dataset_episodes(name, spec.target, foods)
+    if tasks:
+        records += _run_parallel(tasks, int(processes), progress)
+    order = {name: i for i, name in enumerate(specs)}
+    records.sort(key=lambda r: (order[r["agent"]], foods.index(r["food"]), r["episode"]))
+    config = dict(
+        agents={name: str(spec) for name, spec in agents.items()},
+        foods=foods,
+        episodes=int(episodes),
+        seed=int(seed),
+        horizon=horizon,
+        processes=int(processes),
+        env_kwargs=dict(env_kwargs or {}),
+        success_hold_s=SUCCESS_HOLD_S,
+        versions=_versions(),
+    )
+    result = EvaluationResult(records, list(specs), foods, config)
+    if output_dir is not None:
+        result.write(output_dir)
+    return result
+
+
+def _run_parallel(tasks: list[EpisodeTask], processes: int, progress: bool) -> list[dict]:
+    """Runs the tasks in ``processes`` fresh worker processes; the first failure stops the run and is raised."""
+    from tqdm import tqdm
+
+    methods = multiprocessing.get_all_start_methods()
+    context = multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+    records = []
+    with tqdm(total=len(tasks), desc="episodes", unit="ep", disable=not progress) as bar:
+        with ProcessPoolExecutor(max_workers=processes, mp_context=context, initializer=_init_worker) as pool:
+            pending = {pool.submit(_run_task, t) for t in tasks}
+            while pending:
+                done, pending = wait(pending, return_when=FIRST_EXCEPTION)
+                for future in done:
+                    error = future.exception()
+                    if error is not None:
+                        bar.write(f"evaluation failed, stopping the workers: {error}")
+                        for other in pending:
+                            other.cancel()
+                        pool.shutdown(wait=True, cancel_futures=True)  # at most the episodes under way
+                        if isinstance(error, EvaluationError):
+                            raise EvaluationError(str(error)) from None
+                        raise EvaluationError(f"a worker process failed: {error!r}") from error
+                    records.append(future.result())
+                    bar.update(1)
+    return records
