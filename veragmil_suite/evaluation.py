@@ -130,11 +130,12 @@ def check_foods(foods: list[str]) -> list[str]:
     """The foods to evaluate, each known; ValueError names the accepted ones."""
     from veragmil_suite.foods import FOODS
 
+    accepted = ", ".join(dict.fromkeys([*ALL_FOODS, *FOODS]))  # seen, unseen, then any registered later
     unknown = [f for f in foods if f not in FOODS]
     if unknown:
-        raise ValueError(f"unknown food(s) {', '.join(unknown)}; accepted foods: {', '.join(FOODS)}")
+        raise ValueError(f"unknown food(s) {', '.join(unknown)}; accepted foods: {accepted}")
     if not foods:
-        raise ValueError(f"no foods to evaluate; accepted foods: {', '.join(FOODS)}")
+        raise ValueError(f"no foods to evaluate; accepted foods: {accepted}")
     return list(dict.fromkeys(foods))
 
 

@@ -1,0 +1,219 @@
+"""
+veragmil-evaluate: the tables' numbers against a hand-computed case, a recorded dataset scored by its own stored
+metrics, the expert and a tiny trained checkpoint rolled out in parallel workers, every output file, and clear
+errors (exit 2) for a bad food or agent.
+"""
+
+import csv
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from recording_helpers import record_file, tiny_env_kwargs
+
+from veragmil_suite.evaluation import EvaluationError, EvaluationResult, evaluate, parse_agent_argument
+
+BIN = Path(sys.executable).parent
+# a cheap scene: a dozen pasta pieces, one settled pile
+CHEAP = {"n_grains": 12, "pile_variants": 1}
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+def _run(*args, timeout=300):
+    return subprocess.run(
+        [str(BIN / "veragmil-evaluate"), *map(str, args)],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        stdin=subprocess.DEVNULL,
+    )
+
+
+def _episode(agent, food, success, spilled, time_s, episode=0):
+    return dict(
+        agent=agent,
+        food=food,
+        episode=episode,
+        seed=episode,
+        success=success,
+        grains_spilled=spilled,
+        spilled_volume_cm3=0.1 * spilled,
+        completion_time_s=time_s,
+        steps=int(time_s * 20),
+        end_reason="success" if success else "horizon",
+        physics_error="",
+        grains_in_spoon=3,
+        spill_fraction=0.0,
+        wall_s=1.0,
+    )
+
+
+# A: rice 2 of 3 (spilled 2, 4, 6: mean 4, population std sqrt(8/3); time of the successes 10 and 14: 12; the
+# failure's 30 s left out), pasta 0 of 1 (no time: "-"), peas 2 of 2 (spilled 0, 2; times 8, 12). B: rice only.
+HAND_CASE = [
+    _episode("A", "rice", True, 2, 10.0, 0),
+    _episode("A", "rice", True, 4, 14.0, 1),
+    _episode("A", "rice", False, 6, 30.0, 2),
+    _episode("A", "pasta", False, 1, 20.0, 0),
+    _episode("A", "peas", True, 0, 8.0, 0),
+    _episode("A", "peas", True, 2, 12.0, 1),
+    _episode("B", "rice", True, 3, 9.0, 0),
+]
+
+
+def test_summary_and_tables_match_a_hand_computed_case(tmp_path):
+    result = EvaluationResult(HAND_CASE, ["A", "B"], ["rice", "pasta", "peas"], dict(seed=0))
+    rice = result.summary[("A", "rice")]
+    assert rice["episodes"] == 3 and rice["successes"] == 2
+    assert rice["success_rate"] == pytest.approx(2 / 3)
+    assert rice["grains_spilled_mean"] == pytest.approx(4.0)
+    assert rice["grains_spilled_std"] == pytest.approx(math.sqrt(8 / 3))
+    assert rice["completion_time_s_mean"] == pytest.approx(12.0)
+    assert math.isnan(result.summary[("A", "pasta")]["completion_time_s_mean"])
+    assert ("B", "pasta") not in result.summary
+
+    lines = result.markdown().splitlines()
+    # Table II: success %, group averages weigh each food the same, a food without an entry is left out
+    for line in (
+        "| **seen (training)** | | |",
+        "| rice | 67 | 100 |",
+        "| pasta | 0 | - |",
+        "| *seen (training) average* | 33 | 100 |",
+        "| **unseen** | | |",
+        "| peas | 100 | - |",
+        "| *unseen average* | 100 | - |",
+        "| *overall average* | 56 | 100 |",
+    ):
+        assert line in lines, line
+    # Table III: spilled pieces mean +- std, time over successes ("-" when none)
+    for line in (
+        "| rice | 4.0 ± 1.6 | 12.0 | 3.0 ± 0.0 | 9.0 |",
+        "| pasta | 1.0 ± 0.0 | - | - | - |",
+        "| *seen (training) average* | 2.5 | 12.0 | 3.0 | 9.0 |",
+        "| peas | 1.0 ± 1.0 | 10.0 | - | - |",
+        "| *overall average* | 2.0 | 11.0 | 3.0 | 9.0 |",  # spilled (4 + 1 + 1) / 3; time (12 + 10) / 2,
+    ):
+        assert line in lines, line
+    assert lines.index("| rice | 67 | 100 |") < lines.index("| **unseen** | | |") < lines.index("| peas | 100 | - |")
+
+    paths = result.write(str(tmp_path))
+    assert set(paths) == {"episodes.csv", "results.json", "table.md", "table.csv", "success.png"}
+    with open(paths["table.csv"]) as f:
+        rows = {r["food"]: r for r in csv.DictReader(f)}
+    assert float(rows["rice"]["A success %"]) == pytest.approx(66.67, abs=0.01)
+    assert float(rows["seen (training) average"]["A success %"]) == pytest.approx(33.33, abs=0.01)
+    assert float(rows["overall average"]["A success %"]) == pytest.approx(55.56, abs=0.01)
+    assert rows["pasta"]["A time s mean"] == "NaN" and rows["pasta"]["B success %"] == "NaN"
+    assert float(rows["peas"]["A spilled pieces std"]) == pytest.approx(1.0)
+    assert rows["rice"]["group"] == "seen (training)" and rows["peas"]["group"] == "unseen"
+    with open(paths["episodes.csv"]) as f:
+        episodes = list(csv.DictReader(f))
+    assert len(episodes) == len(HAND_CASE) and episodes[2]["completion_time_s"] == "30.0"
+    saved = json.loads(Path(paths["results.json"]).read_text())
+    assert len(saved["episodes"]) == len(HAND_CASE) and saved["config"] == {"seed": 0}
+    pasta = next(s for s in saved["summary"] if (s["agent"], s["food"]) == ("A", "pasta"))
+    assert pasta["completion_time_s_mean"] is None and pasta["success_rate"] == 0.0
+    assert Path(paths["table.md"]).read_text() == result.markdown()
+    assert Path(paths["success.png"]).read_bytes()[:8] == PNG_MAGIC
+
+
+def test_agent_arguments_name_and_check_specs(tmp_path):
+    checkpoint = tmp_path / "model_epoch_5.pth"
+    checkpoint.write_bytes(b"")
+    assert parse_agent_argument(str(checkpoint)) == ("model_epoch_5", str(checkpoint))
+    assert parse_agent_argument(f"BC={checkpoint}") == ("BC", str(checkpoint))
+    assert parse_agent_argument("expert") == ("expert", "expert")
+    assert parse_agent_argument("3DM=expert:spacemouse") == ("3DM", "expert:spacemouse")
+    with pytest.raises(ValueError, match="accepted profiles: expert, careful"):
+        parse_agent_argument("expert:robot")
+    with pytest.raises(ValueError, match=r"\*\.pth"):
+        parse_agent_argument("policy.pkl")
+
+
+def test_dataset_agent_reports_the_demos_stored_metrics(tmp_path):
+    path = tmp_path / "human.hdf5"
+    recorded = record_file(path, episodes=2, steps=12, env_kwargs=tiny_env_kwargs(cameras=()), operator="alice")
+    result = evaluate({"human": f"dataset:{path}"}, foods=["pasta", "rice"], episodes=5, progress=False)
+    assert [(e["agent"], e["food"], e["episode"]) for e in result.episodes] == [
+        ("human", "pasta", 0),
+        ("human", "pasta", 1),
+    ]
+    for episode, demo in zip(result.episodes, recorded):
+        for key in ("success", "grains_spilled", "spilled_volume_cm3", "completion_time_s", "grains_in_spoon"):
+            assert episode[key] == demo.metrics[key], key
+        assert episode["steps"] == demo.num_samples == 12
+    assert set(result.summary) == {("human", "pasta")}  # no rice in the file: no entry, "-" in the tables
+    assert "| rice | - |" in result.markdown()
+
+
+def test_cli_expert_and_dataset_in_two_processes_write_every_output(tmp_path):
+    dataset = tmp_path / "demos.hdf5"
+    record_file(dataset, episodes=1, steps=12, env_kwargs=tiny_env_kwargs(cameras=()))
+    out = tmp_path / "eval"
+    args = ["--agent", "expert", "--agent", f"human=dataset:{dataset}", "--foods", "pasta", "--episodes", 2]
+    args += ["--processes", 2, "--output-dir", out, "--horizon", 300, "--env-kwargs", json.dumps(CHEAP)]
+    result = _run(*args, "--videos", 1, "--quiet")
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    for name in ("episodes.csv", "results.json", "table.md", "table.csv", "success.png", "videos/expert_pasta_0.mp4"):
+        assert (out / name).stat().st_size > 0, name
+    assert not (out / "videos" / "expert_pasta_1.mp4").exists()
+    assert (out / "success.png").read_bytes()[:8] == PNG_MAGIC
+    saved = json.loads((out / "results.json").read_text())
+    expert = [e for e in saved["episodes"] if e["agent"] == "expert"]
+    assert [e["seed"] for e in expert] == [0, 1]  # episode i: seed + i
+    for e in expert:
+        assert e["end_reason"] in ("success", "horizon", "gave up") and 0 < e["steps"] <= 300
+        assert e["success"] == (e["end_reason"] == "success")
+    assert saved["config"]["foods"] == ["pasta"] and saved["config"]["env_kwargs"] == CHEAP
+    assert "robosuite" in saved["config"]["versions"]
+    assert "Table II" in result.stdout and "| pasta |" in result.stdout and "human" in result.stdout
+    assert "episodes:" not in result.stderr  # --quiet: no progress bar
+
+
+def test_bad_food_or_agent_exits_2_naming_the_accepted_values_and_writes_nothing(tmp_path):
+    out = tmp_path / "eval"
+    result = _run("--agent", "expert", "--foods", "rice", "lentils", "--output-dir", out, timeout=60)
+    assert result.returncode == 2 and "accepted foods: rice, buckwheat" in result.stderr
+    result = _run("--agent", "robot.pkl", "--foods", "rice", "--output-dir", out, timeout=60)
+    assert result.returncode == 2 and "'expert:<profile>'" in result.stderr and "*.pth" in result.stderr
+    result = _run("--agent", "X=expert:sloppy", "--output-dir", out, timeout=60)
+    assert result.returncode == 2 and "accepted profiles" in result.stderr
+    result = _run("--agent", f"dataset:{tmp_path / 'none.hdf5'}", "--output-dir", out, timeout=60)
+    assert result.returncode == 2 and "not found" in result.stderr
+    assert not out.exists()
+
+
+def test_a_failing_episode_fails_the_run_with_the_workers_traceback():
+    with pytest.raises(EvaluationError, match=r"(?s)expert on pasta, episode 0.*Traceback.*no_such_argument"):
+        evaluate({"expert": "expert"}, ["pasta"], 1, processes=1, env_kwargs={"no_such_argument": 1}, progress=False)
+
+
+def test_checkpoint_agent_rolls_out_on_the_evaluated_food(tmp_path):
+    """A tiny BC checkpoint trained on pasta, evaluated on peas with the expert, the same seeds."""
+    from helpers.tiny_dataset import record_tiny_dataset
+
+    from veragmil_suite.pipeline import train_checkpoint, training_config
+
+    dataset = record_tiny_dataset(str(tmp_path / "tiny.hdf5"), episodes=2, steps=20, valid_episodes=1)
+    config = training_config("bc", Path(dataset), tmp_path / "runs", "tiny_bc", epochs=1, steps_per_epoch=3)
+    config["train"]["batch_size"] = 16
+    checkpoint, _ = train_checkpoint(config, tmp_path)
+    horizon = 15
+    result = evaluate(
+        {"BC": str(checkpoint), "expert": "expert"},
+        foods=["peas"],
+        episodes=1,
+        processes=2,
+        seed=7,
+        horizon=horizon,
+        env_kwargs=CHEAP,
+        progress=False,
+    )
+    bc = next(e for e in result.episodes if e["agent"] == "BC")
+    assert bc["food"] == "peas" and bc["seed"] == 7
+    assert bc["steps"] == horizon and bc["end_reason"] == "horizon" and not bc["success"]
+    assert {e["seed"] for e in result.episodes} == {7}
+    assert "| peas | 0 |" in result.markdown()
