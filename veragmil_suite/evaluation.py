@@ -18,6 +18,7 @@ mean; with no success the cell is "-" (NaN in table.csv).
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import csv
 import io
@@ -239,7 +240,8 @@ def _policy(path: str):
         robomimic_compat.install()
         import robomimic.utils.file_utils as FileUtils
 
-        _POLICIES[path] = FileUtils.policy_from_checkpoint(ckpt_path=path, device=torch.device("cpu"))
+        with contextlib.redirect_stdout(io.StringIO()):  # robomimic's banner of observation keys, per worker
+            _POLICIES[path] = FileUtils.policy_from_checkpoint(ckpt_path=path, device=torch.device("cpu"))
     return _POLICIES[path]
 
 
@@ -257,9 +259,10 @@ def _checkpoint_env(task: EpisodeTask):
         kwargs["horizon"] = task.horizon
     meta["env_kwargs"] = kwargs
     use_images = bool(ckpt["shape_metadata"]["use_images"])
-    env = EnvUtils.create_env_from_metadata(
-        env_meta=meta, render=False, render_offscreen=bool(task.video_path), use_image_obs=use_images
-    )
+    with contextlib.redirect_stdout(io.StringIO()):  # robomimic prints each env it creates
+        env = EnvUtils.create_env_from_metadata(
+            env_meta=meta, render=False, render_offscreen=bool(task.video_path), use_image_obs=use_images
+        )
     torch.manual_seed(task.seed)
     np.random.seed(task.seed)
     policy.start_episode()
