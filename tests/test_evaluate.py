@@ -183,6 +183,9 @@ def test_bad_food_or_agent_exits_2_naming_the_accepted_values_and_writes_nothing
     assert result.returncode == 2 and "accepted profiles" in result.stderr
     result = _run("--agent", f"dataset:{tmp_path / 'none.hdf5'}", "--output-dir", out, timeout=60)
     assert result.returncode == 2 and "not found" in result.stderr
+    (tmp_path / "notes.hdf5").write_text("not HDF5")
+    result = _run("--agent", f"dataset:{tmp_path / 'notes.hdf5'}", "--output-dir", out, timeout=60)
+    assert result.returncode == 2 and "notes.hdf5" in result.stderr
     assert not out.exists()
 
 

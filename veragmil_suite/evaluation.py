@@ -109,6 +109,12 @@ def parse_spec(spec: str) -> AgentSpec:
         path = spec[len("dataset:") :]
         if not Path(path).is_file():
             raise ValueError(f"dataset {path!r} not found (agent {spec!r}); an agent is {SPEC_HELP}")
+        from veragmil_suite.recording import open_dataset
+
+        try:
+            open_dataset(path).close()
+        except Exception as e:  # noqa: BLE001 - any unreadable file is a bad agent, named with the reason
+            raise ValueError(f"agent {spec!r}: {e}") from e
         return AgentSpec("dataset", path)
     if spec.endswith(".pth"):
         if not Path(spec).is_file():
@@ -565,8 +571,10 @@ class EvaluationResult:
         Path(paths["table.csv"]).write_text(csv_tables(self.summary, self.agents, self.foods))
         paths["success.png"] = str(out / "success.png")
         plot_success(self.summary, self.agents, self.foods, paths["success.png"])
-        videos = sorted((out / "videos").glob("*.mp4")) if (out / "videos").is_dir() else []
-        paths.update({f"videos/{v.name}": str(v) for v in videos})
+        for e in self.episodes:  # this run's videos only, not those an earlier run left in the folder
+            video = out / "videos" / _video_name(e["agent"], e["food"], e["episode"])
+            if e["episode"] < self.config.get("videos", 0) and video.is_file():
+                paths[f"videos/{video.name}"] = str(video)
         return paths
 
 
@@ -651,6 +659,8 @@ def evaluate(
         seed=int(seed),
         horizon=horizon,
         processes=int(processes),
+        videos=int(videos),
+        video_camera=video_camera,
         env_kwargs=dict(env_kwargs or {}),
         success_hold_s=SUCCESS_HOLD_S,
         versions=_versions(),
