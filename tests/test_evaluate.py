@@ -166,7 +166,7 @@ def test_cli_expert_and_dataset_in_two_processes_write_every_output(tmp_path):
     assert [e["seed"] for e in expert] == [0, 1]  # episode i: seed + i
     for e in expert:
         assert e["end_reason"] in ("success", "horizon", "gave up") and 0 < e["steps"] <= 300
-        assert e["success"] == (e["end_reason"] == "success")
+        assert e["success"] or e["end_reason"] != "success"  # success: the last step's, as demos store it
     assert saved["config"]["foods"] == ["pasta"] and saved["config"]["env_kwargs"] == CHEAP
     assert "robosuite" in saved["config"]["versions"]
     assert "Table II" in result.stdout and "| pasta |" in result.stdout and "human" in result.stdout

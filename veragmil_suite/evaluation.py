@@ -207,16 +207,12 @@ _POLICIES: dict = {}  # per worker process: checkpoint path -> (RolloutPolicy, c
 
 
 def _init_worker() -> None:
-    """Each worker runs one episode at a time on one core: one torch thread, software rendering."""
+    """Each worker runs one episode at a time on one core: one torch thread (set when a checkpoint first imports
+    torch, so expert-only workers start without it), software rendering."""
     os.environ["MUJOCO_GL"] = "osmesa"
     os.environ["PYOPENGL_PLATFORM"] = "osmesa"
     os.environ["VERAGMIL_TORCH_THREADS"] = "1"
-    try:
-        import torch
-
-        torch.set_num_threads(1)
-    except ImportError:  # the expert alone needs no torch
-        pass
+    os.environ["OMP_NUM_THREADS"] = "1"
 
 
 def _expert_env(task: EpisodeTask):
@@ -240,6 +236,8 @@ def _expert_env(task: EpisodeTask):
 def _policy(path: str):
     if path not in _POLICIES:
         import torch
+
+        torch.set_num_threads(int(os.environ.get("VERAGMIL_TORCH_THREADS", "1")))
 
         from veragmil_suite import robomimic_compat
 
