@@ -367,4 +367,10 @@ def test_reloading_another_variants_xml_uses_that_piles_grain_sizes():
     other.reset()
     with pytest.raises(ValueError, match="pile variants of 'barley'"):
         env.reset_from_xml_string(other.sim.model.get_xml().replace("rice", "barley"))
-    env.close(), other.close()
+    fewer = make_env("pasta", n_grains=env.n_grains - 1, seed=0)
+    fewer.reset()
+    with pytest.raises(
+        ValueError, match=f"holds {env.n_grains - 1} grains, this environment {env.n_grains} of 'barley'"
+    ):
+        env.reset_from_xml_string(fewer.sim.model.get_xml())
+    env.close(), other.close(), fewer.close()

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import mujoco
 import numpy as np
 import robosuite.utils.transform_utils as T
@@ -313,6 +315,17 @@ class ScoopGranular(ManipulationEnv):
             self.food, self.n_grains, np.random.default_rng([variant, self.n_grains, *map(ord, self.food.name)])
         )
 
+    def _check_loaded_grain_count(self) -> None:
+        """A recorded XML of another food or grain count (a merged multi-food dataset) fails here, clearly."""
+        pattern = re.compile(rf"{re.escape(self.grain_pile.name)}\d+")
+        loaded = sum(1 for name in self.sim.model.body_names if pattern.fullmatch(name))
+        if loaded != self.n_grains:
+            raise ValueError(
+                f"the loaded model holds {loaded} grains, this environment {self.n_grains} of {self.food.name!r}: "
+                "make the environment with the env_kwargs the model was recorded with (each demo stores its own in "
+                "its 'env_args' attribute)"
+            )
+
     def _match_loaded_pile(self) -> None:
         """
         Points grain_pile at the variant the simulation was built from.
@@ -351,6 +364,7 @@ class ScoopGranular(ManipulationEnv):
         self.bowl_body_id = model.body_name2id(self.bowl.root_body)
         self.bowl_qpos_adr = model.get_joint_qpos_addr(self.bowl.joints[0])[0]
         self.bowl_qvel_adr = model.get_joint_qvel_addr(self.bowl.joints[0])[0]
+        self._check_loaded_grain_count()
         self.grain_body_ids = np.array([model.body_name2id(n) for n in self.grain_pile.body_names])
         self.grain_qpos_adr = np.array([model.get_joint_qpos_addr(n)[0] for n in self.grain_pile.joint_names])
         self.grain_qvel_adr = np.array([model.get_joint_qvel_addr(n)[0] for n in self.grain_pile.joint_names])
