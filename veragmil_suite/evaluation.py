@@ -29,7 +29,7 @@ import os
 import time
 import traceback
 from collections.abc import Callable
-from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -241,10 +241,11 @@ def _policy(path: str):
 
         from veragmil_suite import robomimic_compat
 
-        robomimic_compat.install()
-        import robomimic.utils.file_utils as FileUtils
+        # robomimic's "no private macro file" warning at import and its banner of observation keys, per worker
+        with contextlib.redirect_stdout(io.StringIO()):
+            robomimic_compat.install()
+            import robomimic.utils.file_utils as FileUtils
 
-        with contextlib.redirect_stdout(io.StringIO()):  # robomimic's banner of observation keys, per worker
             _POLICIES[path] = FileUtils.policy_from_checkpoint(ckpt_path=path, device=torch.device("cpu"))
     return _POLICIES[path]
 
@@ -680,7 +681,7 @@ def _run_parallel(tasks: list[EpisodeTask], processes: int, progress: bool) -> l
         with ProcessPoolExecutor(max_workers=processes, mp_context=context, initializer=_init_worker) as pool:
             pending = {pool.submit(_run_task, t) for t in tasks}
             while pending:
-                done, pending = wait(pending, return_when=FIRST_EXCEPTION)
+                done, pending = wait(pending, return_when=FIRST_COMPLETED)
                 for future in done:
                     error = future.exception()
                     if error is not None:
