@@ -11,6 +11,7 @@ metres away) are not motion: they are rejected as jumps, and the clutch re-ancho
 
 from __future__ import annotations
 
+import abc
 import math
 
 import numpy as np
@@ -24,16 +25,8 @@ def smoothing_factor(dt: float, cutoff_hz: float) -> float:
     return dt / (dt + tau)
 
 
-class OneEuroFilter:
-    """One-Euro filter on a vector signal; the cutoff follows the norm of the (filtered) velocity.
-
-    Args:
-        min_cutoff (float): cutoff (Hz) of a still signal; lower removes more jitter
-        beta (float): cutoff gained per unit of speed (Hz per unit/s); higher lags less when moving fast
-        d_cutoff (float): cutoff (Hz) of the velocity estimate itself
-        max_gap (float): a pause longer than this (s) restarts the filter at the next sample rather than
-            blending across it
-    """
+class _AdaptiveCutoffFilter(abc.ABC):
+    """The One-Euro parameters, shared by the vector and the orientation filter."""
 
     def __init__(self, min_cutoff: float = 1.0, beta: float = 0.0, d_cutoff: float = 1.0, max_gap: float = 0.5):
         if min_cutoff <= 0 or d_cutoff <= 0 or beta < 0:
@@ -43,6 +36,22 @@ class OneEuroFilter:
         self.d_cutoff = d_cutoff
         self.max_gap = max_gap
         self.reset()
+
+    @abc.abstractmethod
+    def reset(self) -> None:
+        """Forget the signal: the next sample passes unfiltered."""
+
+
+class OneEuroFilter(_AdaptiveCutoffFilter):
+    """One-Euro filter on a vector signal; the cutoff follows the norm of the (filtered) velocity.
+
+    Args:
+        min_cutoff (float): cutoff (Hz) of a still signal; lower removes more jitter
+        beta (float): cutoff gained per unit of speed (Hz per unit/s); higher lags less when moving fast
+        d_cutoff (float): cutoff (Hz) of the velocity estimate itself
+        max_gap (float): a pause longer than this (s) restarts the filter at the next sample rather than
+            blending across it
+    """
 
     def reset(self) -> None:
         """Forget the signal: the next sample passes unfiltered."""
@@ -71,20 +80,11 @@ class OneEuroFilter:
         return self._x.copy()
 
 
-class SlerpFilter:
+class SlerpFilter(_AdaptiveCutoffFilter):
     """One-Euro filter for orientations: slerp toward each sample, cutoff raised by the angular speed.
 
     Args as ``OneEuroFilter``, with beta in Hz per rad/s.
     """
-
-    def __init__(self, min_cutoff: float = 1.0, beta: float = 0.0, d_cutoff: float = 1.0, max_gap: float = 0.5):
-        if min_cutoff <= 0 or d_cutoff <= 0 or beta < 0:
-            raise ValueError("cutoffs must be positive and beta non-negative")
-        self.min_cutoff = min_cutoff
-        self.beta = beta
-        self.d_cutoff = d_cutoff
-        self.max_gap = max_gap
-        self.reset()
 
     def reset(self) -> None:
         """Forget the signal: the next sample passes unfiltered."""
