@@ -22,6 +22,8 @@ import veragmil_suite  # noqa: F401  (registers ScoopGranular)
 from veragmil_suite.foods import FOODS, TRAINING_FOODS
 
 REAL_TIME_STEPS_PER_S = 20.0  # the default 20 Hz control rate
+AIM_RTF = 2.0  # the environment issue's aim: twice real time...
+AIM_VS_LIFT = 0.8  # ...and 0.8x robosuite's Lift on the same robot
 
 
 def _env_rate(env, steps: int) -> float:
@@ -91,6 +93,7 @@ def main(argv: list[str] | None = None) -> None:
     header = f"{'food':<10}" + "".join(f" {c:>8}" for c in columns)
     print(header)
     print("-" * len(header))
+    training_defaults: dict[str, float] = {}
     for food in foods:
         for scale in scales:
             n = max(1, int(round(FOODS[food].default_grains * scale)))
@@ -100,12 +103,24 @@ def main(argv: list[str] | None = None) -> None:
             bare = _bare_rate(env, args.steps)
             env.close()
             flag = " *" if food in TRAINING_FOODS and scale == 1 and rate < REAL_TIME_STEPS_PER_S else ""
+            if food in TRAINING_FOODS and scale == 1:
+                training_defaults[food] = rate
             print(
                 f"{food:<10} {n:>8} {rate:>8.1f} {rate / REAL_TIME_STEPS_PER_S:>6.2f} {rate / lift_rate:>8.2f} "
                 f"{bare:>8.1f} {rate / bare:>8.2f} {contacts:>8}{flag}",
                 flush=True,
             )
-    print("\n* a training food's default scene below real time")
+    if training_defaults:
+        slowest = min(training_defaults, key=training_defaults.get)
+        rate = training_defaults[slowest]
+        below = [f for f, r in training_defaults.items() if r < REAL_TIME_STEPS_PER_S]
+        print(
+            f"\nslowest training food at its default: {slowest} {rate:.1f} steps/s, "
+            f"RTF {rate / REAL_TIME_STEPS_PER_S:.2f} (must: 1.0, aim: {AIM_RTF:.1f}), "
+            f"{rate / lift_rate:.2f}x Lift (aim: {AIM_VS_LIFT:.1f}x)"
+        )
+        if below:
+            print(f"* below real time: {', '.join(below)}")
 
 
 if __name__ == "__main__":
