@@ -6,7 +6,7 @@ import pytest
 from recording_helpers import make_env, tiny_env_kwargs
 
 from veragmil_suite.controllers import load_scoop_controller_config
-from veragmil_suite.expert import PROFILES, QUANTIZE_FULL_SCALE, ScriptedScooper
+from veragmil_suite.expert import DRIFT_CORRECTION_MAX_S, PROFILES, QUANTIZE_FULL_SCALE, ScriptedScooper
 from veragmil_suite.scripts.measure_expert import run_expert_episode
 
 
@@ -69,3 +69,30 @@ def test_bad_profile_and_controller_are_named():
     with pytest.raises(ValueError, match="OSC_POSE controller with delta input"):
         ScriptedScooper(ik, "expert")
     ik.close()
+
+
+def test_spacemouse_profile_scoops_a_seen_food_more_slowly_than_the_expert():
+    """One axis at a time still gets a portion to the post-scoop pose: turns in the pile stop for drift
+    corrections, and the hand comes off the input at the pose (coarse nudges there would never hold still)."""
+    mouse = run_expert_episode("buckwheat", 0, "spacemouse")
+    expert = run_expert_episode("buckwheat", 0, "expert")
+    assert mouse["success"], mouse
+    assert mouse["end_reason"] == "success"
+    assert mouse["spill_fraction"] < 0.05
+    assert mouse["completion_time_s"] > expert["completion_time_s"]
+
+
+def test_one_axis_drift_correction_interrupts_a_turn_and_gives_it_back():
+    env = make_env(tiny_env_kwargs(cameras=()))
+    env.reset()
+    mouse = ScriptedScooper(env, "spacemouse", seed=0)
+    limit = PROFILES["spacemouse"].turn_drift_m
+    turn = np.array([0.0, 0.0, 0.0, 0.0, 0.5, 0.0])  # 0.5 rad to turn about y: a turn is due
+    assert mouse._one_axis(turn, 0.0).argmax() == 4
+    # drifted past the limit: the position comes first, for DRIFT_CORRECTION_MAX_S at most
+    drifted = turn + np.array([0.0, 0.0, 2 * limit, 0.0, 0.0, 0.0])
+    axes = [int(mouse._one_axis(drifted, 2 * limit).argmax()) for _ in range(40)]
+    max_steps = int(DRIFT_CORRECTION_MAX_S * env.control_freq)
+    assert axes[:max_steps] == [2] * max_steps
+    assert 4 in axes[max_steps:]  # a spoon stalled in the pile turns on
+    env.close()

@@ -41,6 +41,16 @@ class OperatorProfile:
         max_accel: translation acceleration limit (m/s^2); a 3D mouse has none worth the name.
         max_hold_s: longest the spoon is held at the post-scoop pose before the expert gives up (an episode normally
             ends sooner, once success has held for a moment).
+        turn_drift_m: one-axis operators only: a turn stops for a translation once the spoon has drifted this far
+            (m) from its waypoint (0: never). A delta-pose controller anchors each step at the pose reached, so a
+            turn with no translation input lets the spoon wander, and a turn about the wrist drags the spoon's rim
+            2-4 mm per degree through the pile.
+        waypoint_tol_scale: phases count as reached within this multiple of their position and angle tolerances:
+            coarse one-axis input settles a few millimetres off, where the expert's tolerances would time out.
+        phase_time_scale: a phase is given up on (and the next begun) after this multiple of its time limit: turning
+            one axis at a time, with corrections in between, takes longer than the expert's combined motion.
+        let_go_tol_m: at the post-scoop pose, the operator takes the hand off the input once the spoon is this close
+            (m) (0: never): coarse nudges there move the spoon faster than a held spoon moves.
     """
 
     name: str
@@ -54,6 +64,10 @@ class OperatorProfile:
     release_prob: float = 0.0
     max_accel: float = 0.6
     max_hold_s: float = 3.0
+    turn_drift_m: float = 0.0
+    waypoint_tol_scale: float = 1.0
+    phase_time_scale: float = 1.0
+    let_go_tol_m: float = 0.0
 
 
 PROFILES = {
@@ -72,6 +86,10 @@ PROFILES = {
         release_prob=0.04,
         max_accel=10.0,
         max_hold_s=5.0,
+        turn_drift_m=0.006,
+        waypoint_tol_scale=2.0,
+        phase_time_scale=1.5,
+        let_go_tol_m=0.01,
     ),
 }
 
@@ -106,6 +124,11 @@ INTEGRAL_LIMIT = np.array([0.015, 0.015, 0.015, 0.15, 0.15, 0.15])
 INTEGRAL_LEAK = 0.97
 # one-axis (3D-mouse) operator: 0.1 rad of orientation error weighs like 1 cm of position error when picking the axis
 ONE_AXIS_WEIGHTS = np.array([1.0, 1.0, 1.0, 0.1, 0.1, 0.1])
+# a one-axis operator correcting drift gives the turn back after this long (s), so a spoon stalled in the pile
+# cannot keep the turn from ever happening
+DRIFT_CORRECTION_MAX_S = 0.5
+# ...and corrects down to this fraction of turn_drift_m before turning on
+DRIFT_RESUME_FRACTION = 0.5
 # coarse input: the largest deflection, in action units, split into ``input_levels`` steps
 QUANTIZE_FULL_SCALE = 0.6
 PHASE_NAMES = tuple(p.name for p in PHASES)
@@ -188,6 +211,8 @@ class ScriptedScooper:
         self.last_vel = np.zeros(3)
         self.last_pose = None
         self.axis = None
+        self.drift_steps = 0
+        self.drift_accepted = 0.0
         j = self.profile.plan_jitter_m
         self.jitter = dict(
             y=self.rng.uniform(-j, j),
@@ -213,11 +238,13 @@ class ScriptedScooper:
         target_pos, target_rot = self._waypoint(phase.name, obs)
         pos_err = target_pos - eef_pos
         rot_err = T.quat2axisangle(T.mat2quat(target_rot @ eef_rot.T))
-        reached = np.linalg.norm(pos_err) <= phase.pos_tol and np.linalg.norm(rot_err) <= phase.rot_tol
-        timed_out = self.phase_steps * self.dt >= phase.max_time_s
+        tol = self.profile.waypoint_tol_scale
+        reached = np.linalg.norm(pos_err) <= tol * phase.pos_tol and np.linalg.norm(rot_err) <= tol * phase.rot_tol
+        timed_out = self.phase_steps * self.dt >= phase.max_time_s * self.profile.phase_time_scale
         if phase.name != "hold" and (reached or timed_out):
             self.phase_index += 1
             self.phase_steps = 0
+            self.drift_steps, self.drift_accepted = 0, 0.0
             phase = PHASES[self.phase_index]
             target_pos, target_rot = self._waypoint(phase.name, obs)
             pos_err = target_pos - eef_pos
@@ -225,6 +252,10 @@ class ScriptedScooper:
         self.phase_steps += 1
         if phase.name == "hold":
             self.hold_steps += 1
+            if np.linalg.norm(pos_err) <= self.profile.let_go_tol_m:
+                self.last_vel = np.zeros(3)
+                self.integral = np.zeros(6)
+                return np.zeros(6)
 
         vel = _clip_norm(pos_err * APPROACH_RATE, phase.speed * self.profile.speed)
         dv = _clip_norm(vel - self.last_vel, self.profile.max_accel * self.dt)
@@ -239,7 +270,7 @@ class ScriptedScooper:
         cmd = _to_frame(base_rot, cmd)
         err = _to_frame(base_rot, np.concatenate([pos_err, rot_err]))
         measured = _to_frame(base_rot, self._measured_velocity(eef_pos, eef_rot))
-        mask = self._one_axis(err) if self.profile.one_axis else np.ones(6)
+        mask = self._one_axis(err, float(np.linalg.norm(pos_err))) if self.profile.one_axis else np.ones(6)
         # velocity -> the goal offset that OSC turns into that velocity. XArm7's joints have 1 Nm of friction that
         # swallows small offsets (the spoon stalls short of slow targets), so the offset also carries the integral
         # of the velocity shortfall: a reference motion the spoon is pulled along (a hand pushes harder, too).
@@ -306,9 +337,28 @@ class ScriptedScooper:
         self.noise = a * self.noise + np.sqrt(1 - a**2) * std * self.rng.standard_normal(6)
         return self.noise
 
-    def _one_axis(self, err: np.ndarray) -> np.ndarray:
-        """A one-hot mask: the input axis with the largest remaining error (sticky, as a hand on a 3D mouse is)."""
+    def _one_axis(self, err: np.ndarray, pos_dist: float) -> np.ndarray:
+        """A one-hot mask: the input axis with the largest remaining error (sticky, as a hand on a 3D mouse is);
+        a spoon drifted more than turn_drift_m is brought back before turning on, for a while at most."""
         weighted = np.abs(err) * ONE_AXIS_WEIGHTS
+        turning = weighted[3:].max() > weighted[:3].max()
+        limit = self.profile.turn_drift_m
+        if pos_dist < DRIFT_RESUME_FRACTION * limit:
+            self.drift_accepted = 0.0
+        if turning and 0.0 < limit and pos_dist > self.drift_accepted + limit and not self.drift_steps:
+            self.drift_steps = 1  # start correcting the drift
+        elif self.drift_steps:
+            # correct to half the limit, so the turn gets more than one step before the next correction; a spoon
+            # stalled in the pile keeps the drift it has and turns on
+            stalled = self.drift_steps * self.dt > DRIFT_CORRECTION_MAX_S
+            if stalled:
+                self.drift_accepted = pos_dist
+            done = pos_dist < DRIFT_RESUME_FRACTION * limit or stalled or not turning
+            self.drift_steps = 0 if done else self.drift_steps + 1
+        if self.drift_steps:
+            weighted[3:] = 0.0
+            if self.axis is not None and self.axis >= 3:
+                self.axis = None
         if self.axis is None or weighted[self.axis] < 0.3 * weighted.max() or weighted[self.axis] < 0.002:
             self.axis = int(np.argmax(weighted))
         mask = np.zeros(6)
