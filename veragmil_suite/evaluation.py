@@ -49,6 +49,8 @@ DEFAULT_VIDEO_CAMERA = "overhead"
 # env_kwargs of a checkpoint's training data that describe its food, not the robot: replaced per evaluated food
 FOOD_KWARGS = ("food", "n_grains", "seed")
 MISSING = "-"
+# 95% two-sided normal quantile, for the Wilson intervals of success rates
+WILSON_Z = 1.959964
 
 EPISODE_FIELDS = (
     "agent",
@@ -64,6 +66,8 @@ EPISODE_FIELDS = (
     "physics_error",
     "grains_in_spoon",
     "spill_fraction",
+    "stage",
+    "peak_grains_in_spoon",
     "wall_s",
 )
 
@@ -162,10 +166,14 @@ def run_until_done(
 ) -> dict:
     """
     Steps an agent until success has held ``success_hold_s``, the horizon, a physics error or the agent gives up
-    (``act`` returns None). Returns the last info, steps taken, end_reason and the largest spoon load seen.
+    (``act`` returns None). Returns the last info, steps taken, end_reason, the largest spoon load seen and the
+    furthest stage reached (SCOOP_STAGES).
     """
+    from veragmil_suite.environments.scoop import StageTracker
+
     hold = max(1, int(round(success_hold_s * control_freq)))
     streak, steps, peak, info, reason = 0, 0, 0, {}, "horizon"
+    stages = StageTracker()
     while steps < horizon:
         action = act(obs)
         if action is None:
@@ -176,6 +184,7 @@ def run_until_done(
         if on_step is not None:
             on_step()
         peak = max(peak, int(info.get("grains_in_spoon", 0)))
+        stages.update(info)
         streak = streak + 1 if info.get("success") else 0
         if info.get("physics_error"):
             reason = "physics"
@@ -185,7 +194,7 @@ def run_until_done(
             break
         if done:
             break
-    return dict(info=info, steps=steps, end_reason=reason, peak_grains_in_spoon=peak)
+    return dict(info=info, steps=steps, end_reason=reason, peak_grains_in_spoon=peak, stage=stages.stage)
 
 
 @dataclass(frozen=True)
@@ -300,7 +309,7 @@ def run_episode(task: EpisodeTask) -> dict:
 
         Path(task.video_path).parent.mkdir(parents=True, exist_ok=True)
         imageio.mimsave(task.video_path, frames, fps=env.control_freq)
-    metrics = episode_metrics(out["info"])
+    metrics = episode_metrics(out["info"], out["stage"])
     return dict(
         agent=task.agent,
         food=task.food,
@@ -315,6 +324,8 @@ def run_episode(task: EpisodeTask) -> dict:
         physics_error=metrics["physics_error"],
         grains_in_spoon=metrics["grains_in_spoon"],
         spill_fraction=metrics["spill_fraction"],
+        stage=metrics["stage"],
+        peak_grains_in_spoon=out["peak_grains_in_spoon"],
         wall_s=time.perf_counter() - start,
     )
 
@@ -359,6 +370,8 @@ def dataset_episodes(name: str, path: str, foods: list[str]) -> list[dict]:
                     physics_error=_text(a.get("physics_error", "")),
                     grains_in_spoon=int(a.get("grains_in_spoon", 0)),
                     spill_fraction=float(a.get("spill_fraction", 0.0)),
+                    stage=_text(a.get("stage", MISSING)),
+                    peak_grains_in_spoon=None,
                     wall_s=0.0,
                 )
             )
@@ -372,6 +385,20 @@ def _text(value) -> str:
 # ---------------------------------------------------------------------------------------------------------------- #
 # Summaries and tables                                                                                             #
 # ---------------------------------------------------------------------------------------------------------------- #
+
+
+def wilson_interval(successes: int, n: int, z: float = WILSON_Z) -> tuple[float, float]:
+    """The Wilson score interval of a success rate (95% by default), as fractions; (nan, nan) for n = 0.
+
+    Unlike the normal approximation it stays inside [0, 1] and is not empty at 0 or n successes, which 20
+    episodes often give.
+    """
+    if n <= 0:
+        return math.nan, math.nan
+    p = successes / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return max(0.0, centre - half), min(1.0, centre + half)
 
 
 def summarize(episodes: list[dict]) -> dict[tuple[str, str], dict]:
@@ -388,14 +415,49 @@ def summarize(episodes: list[dict]) -> dict[tuple[str, str], dict]:
             episodes=len(rows),
             successes=len(ok),
             success_rate=len(ok) / len(rows),
+            success_ci95=wilson_interval(len(ok), len(rows)),
             grains_spilled_mean=float(spilled.mean()),
             grains_spilled_std=float(spilled.std()),
             spilled_volume_cm3_mean=float(np.mean([e["spilled_volume_cm3"] for e in rows])),
             completion_time_s_mean=float(times.mean()) if ok else math.nan,
             completion_time_s_std=float(times.std()) if ok else math.nan,
             physics_errors=sum(bool(e["physics_error"]) for e in rows),
+            stages={stage: sum(e.get("stage") == stage for e in rows) for stage in _stage_columns(rows)},
         )
     return out
+
+
+def _stage_columns(rows: list[dict]) -> list[str]:
+    """SCOOP_STAGES, and "-" for recorded demos that predate stage labels (only when there are any)."""
+    from veragmil_suite.environments.scoop import SCOOP_STAGES
+
+    return [*SCOOP_STAGES] + ([MISSING] if any(r.get("stage") not in SCOOP_STAGES for r in rows) else [])
+
+
+def stage_table(summary: dict, agents: list[str], foods: list[str], fmt: str = "markdown") -> str:
+    """
+    Where episodes stopped: per agent and food, how many ended at each furthest stage (SCOOP_STAGES, "held" being
+    success), as markdown or CSV.
+    """
+    columns = list(dict.fromkeys(c for s in summary.values() for c in s["stages"]))
+    rows = [(a, f, summary[(a, f)]) for a in agents for f in foods if (a, f) in summary]
+    if fmt == "csv":
+        buf = io.StringIO()
+        writer = csv.writer(buf, lineterminator="\n")
+        writer.writerow(["agent", "food", "episodes", *columns])
+        for a, f, s in rows:
+            writer.writerow([a, f, s["episodes"], *(s["stages"].get(c, 0) for c in columns)])
+        return buf.getvalue()
+    lines = [
+        "Furthest stage reached (episodes per agent and food; 'held' is success)",
+        "",
+        "| agent | food | episodes | " + " | ".join(columns) + " |",
+        "|---|---|---:|" + "---:|" * len(columns),
+    ]
+    for a, f, s in rows:
+        counts = " | ".join(str(s["stages"].get(c, 0)) for c in columns)
+        lines.append(f"| {a} | {f if f in TRAINING_FOODS else f + ' (unseen)'} | {s['episodes']} | {counts} |")
+    return "\n".join(lines) + "\n"
 
 
 def _mean(values: list[float]) -> float:
@@ -411,18 +473,22 @@ def _groups(foods: list[str]) -> list[tuple[str, list[str]]]:
 
 def table_rows(summary: dict, agents: list[str], foods: list[str]) -> dict[str, list[dict]]:
     """
-    Both tables as rows of numbers (NaN where an agent has no entry or no success): "table2" success % per food,
-    "table3" spilled pieces mean/std and completion time mean per food. Each group of foods is followed by its
-    average row, and the overall average closes the table; averages weigh each food the same.
+    Both tables as rows of numbers (NaN where an agent has no entry or no success): "table2" success % per food
+    (with its successes and episodes), "table3" spilled pieces mean/std and completion time mean per food. Each
+    group of foods is followed by its average row, and the overall average closes the table; averages weigh each
+    food the same, and their successes and episodes are the group's totals.
     """
     table2, table3 = [], []
     per_group = _groups(foods)
     for label, group in per_group:
         for food in group:
             s = {a: summary.get((a, food)) for a in agents}
-            table2.append(
-                dict(group=label, food=food, **{a: 100 * s[a]["success_rate"] if s[a] else math.nan for a in agents})
-            )
+            row = dict(group=label, food=food)
+            for a in agents:
+                row[a] = 100 * s[a]["success_rate"] if s[a] else math.nan
+                row[f"{a} successes"] = s[a]["successes"] if s[a] else 0
+                row[f"{a} episodes"] = s[a]["episodes"] if s[a] else 0
+            table2.append(row)
             row = dict(group=label, food=food)
             for a in agents:
                 row[f"{a} spilled"] = s[a]["grains_spilled_mean"] if s[a] else math.nan
@@ -438,12 +504,29 @@ def table_rows(summary: dict, agents: list[str], foods: list[str]) -> dict[str, 
 
 
 def _average_row(rows: list[dict], group: str, foods: list[str], label: str) -> dict:
-    """Mean over the rows of ``foods``, a food without an entry (NaN) left out; no std (it would mix foods)."""
+    """Mean over the rows of ``foods``, a food without an entry (NaN) left out; no std (it would mix foods); counts
+    (successes, episodes) summed."""
     food_rows = [r for r in rows if r["food"] in foods]
     row = dict(group=group, food=label)
     for c in (k for k in food_rows[0] if k not in ("group", "food")):
-        row[c] = math.nan if c.endswith(" std") else _mean([r[c] for r in food_rows])
+        if c.endswith((" successes", " episodes")):
+            row[c] = sum(r[c] for r in food_rows)
+        else:
+            row[c] = math.nan if c.endswith(" std") else _mean([r[c] for r in food_rows])
     return row
+
+
+def _ci_percent(row: dict, agent: str) -> tuple[float, float]:
+    low, high = wilson_interval(row[f"{agent} successes"], row[f"{agent} episodes"])
+    return 100 * low, 100 * high
+
+
+def _rate_cell(row: dict, agent: str) -> str:
+    """A success rate with its 95% Wilson interval, e.g. "70 (48-85)"."""
+    if math.isnan(row[agent]):
+        return MISSING
+    low, high = _ci_percent(row, agent)
+    return f"{row[agent]:.0f} ({low:.0f}-{high:.0f})"
 
 
 def _fmt(value: float, digits: int = 1) -> str:
@@ -453,7 +536,11 @@ def _fmt(value: float, digits: int = 1) -> str:
 def markdown_tables(summary: dict, agents: list[str], foods: list[str]) -> str:
     """Tables II and III as markdown (the paper's layout: rows are foods, one column per agent)."""
     tables = table_rows(summary, agents, foods)
-    lines = ["Table II: success rate (%)", "", "| food | " + " | ".join(agents) + " |"]
+    lines = [
+        "Table II: success rate (%, 95% Wilson interval in brackets)",
+        "",
+        "| food | " + " | ".join(agents) + " |",
+    ]
     lines.append("|---|" + "---:|" * len(agents))
     group = None
     for row in tables["table2"]:
@@ -461,7 +548,7 @@ def markdown_tables(summary: dict, agents: list[str], foods: list[str]) -> str:
             group = row["group"]
             lines.append(f"| **{group}** |" + " |" * len(agents))
         food = row["food"] if row["food"] in foods else f"*{row['food']}*"
-        lines.append(f"| {food} | " + " | ".join(_fmt(row[a], 0) for a in agents) + " |")
+        lines.append(f"| {food} | " + " | ".join(_rate_cell(row, a) for a in agents) + " |")
     lines += [
         "",
         "Table III: spillage (pieces, mean ± std over all episodes) and completion time (s, mean over successes)",
@@ -489,13 +576,16 @@ def csv_tables(summary: dict, agents: list[str], foods: list[str]) -> str:
     """Tables II and III as one CSV: a table column, then group, food and one column per agent and metric."""
     tables = table_rows(summary, agents, foods)
     columns = ["group", "food"]
-    columns += [f"{a} success %" for a in agents]
+    columns += [f"{a} {m}" for a in agents for m in ("success %", "success % ci95 low", "success % ci95 high")]
     columns += [f"{a} {m}" for a in agents for m in ("spilled pieces mean", "spilled pieces std", "time s mean")]
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(columns)
     for r2, r3 in zip(tables["table2"], tables["table3"]):
-        values = [r2["group"], r2["food"]] + [_csv_number(r2[a]) for a in agents]
+        values = [r2["group"], r2["food"]]
+        for a in agents:
+            low, high = _ci_percent(r2, a) if not math.isnan(r2[a]) else (math.nan, math.nan)
+            values += [_csv_number(r2[a]), _csv_number(low), _csv_number(high)]
         for a in agents:
             values += [_csv_number(r3[f"{a} spilled"]), _csv_number(r3[f"{a} spilled std"])]
             values += [_csv_number(r3[f"{a} time"])]
@@ -518,7 +608,7 @@ def _json_safe(value):
 
 
 def plot_success(summary: dict, agents: list[str], foods: list[str], path: str) -> None:
-    """Bar chart of success % per food: one group of bars per food, one bar per agent."""
+    """Bar chart of success % per food: one group of bars per food, one bar per agent, with 95% Wilson intervals."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -528,10 +618,13 @@ def plot_success(summary: dict, agents: list[str], foods: list[str], path: str) 
     x = np.arange(len(foods))
     fig, ax = plt.subplots(figsize=(max(4.0, 1.2 * len(foods) + 1), 3.5))
     for i, agent in enumerate(agents):
-        rates = [100 * summary[(agent, f)]["success_rate"] if (agent, f) in summary else 0.0 for f in foods]
-        ax.bar(x + (i - (len(agents) - 1) / 2) * width, rates, width, label=agent)
+        entries = [summary.get((agent, f)) for f in foods]
+        rates = np.array([100 * e["success_rate"] if e else 0.0 for e in entries])
+        bounds = np.array([100 * np.array(e["success_ci95"]) if e else (0.0, 0.0) for e in entries])
+        errors = np.stack([rates - bounds[:, 0], bounds[:, 1] - rates])
+        ax.bar(x + (i - (len(agents) - 1) / 2) * width, rates, width, label=agent, yerr=errors, capsize=2)
     ax.set_xticks(x, [f if f in TRAINING_FOODS else f"{f}\n(unseen)" for f in foods])
-    ax.set_ylabel("success (%)")
+    ax.set_ylabel("success (%, 95% CI)")
     ax.set_ylim(0, 100)
     ax.legend(fontsize="small")
     fig.tight_layout()
@@ -555,11 +648,16 @@ class EvaluationResult:
     def markdown(self) -> str:
         return markdown_tables(self.summary, self.agents, self.foods)
 
+    def stages_markdown(self) -> str:
+        return stage_table(self.summary, self.agents, self.foods)
+
     def write(self, output_dir: str) -> dict[str, str]:
-        """Writes episodes.csv, results.json, table.md, table.csv and success.png; returns their paths."""
+        """Writes episodes.csv, results.json, table.md, table.csv, stages.md, stages.csv and success.png; returns
+        their paths."""
         out = Path(output_dir)
         out.mkdir(parents=True, exist_ok=True)
-        paths = {name: str(out / name) for name in ("episodes.csv", "results.json", "table.md", "table.csv")}
+        names = ("episodes.csv", "results.json", "table.md", "table.csv", "stages.md", "stages.csv")
+        paths = {name: str(out / name) for name in names}
         with open(paths["episodes.csv"], "w", newline="") as f:
             writer = csv.DictWriter(f, fieldnames=EPISODE_FIELDS, extrasaction="ignore")
             writer.writeheader()
@@ -568,6 +666,8 @@ class EvaluationResult:
         Path(paths["results.json"]).write_text(json.dumps(_json_safe(results), indent=2))
         Path(paths["table.md"]).write_text(self.markdown())
         Path(paths["table.csv"]).write_text(csv_tables(self.summary, self.agents, self.foods))
+        Path(paths["stages.md"]).write_text(self.stages_markdown())
+        Path(paths["stages.csv"]).write_text(stage_table(self.summary, self.agents, self.foods, fmt="csv"))
         paths["success.png"] = str(out / "success.png")
         plot_success(self.summary, self.agents, self.foods, paths["success.png"])
         for e in self.episodes:  # this run's videos only, not those an earlier run left in the folder
@@ -611,12 +711,17 @@ def evaluate(
     progress: bool = True,
     env_kwargs: dict | None = None,
     video_camera: str = DEFAULT_VIDEO_CAMERA,
+    resume: bool = False,
+    say: Callable[[str], None] | None = None,
 ) -> EvaluationResult:
     """
     Scores each agent (name -> SPEC, see parse_spec) for ``episodes`` episodes per food, env seeds ``seed + i``.
 
     ``env_kwargs`` go to every environment (e.g. n_grains for a cheap scene); ``videos`` first episodes per
-    (agent, food) are saved as mp4 under ``output_dir``/videos. Writes the outputs when ``output_dir`` is given.
+    (agent, food) are saved as mp4 under ``output_dir``/videos. Writes the outputs when ``output_dir`` is given,
+    and journals each finished episode in ``output_dir``/episodes.jsonl as it ends: with ``resume``, episodes
+    the journal holds (same agent SPEC, food, seed, horizon and env_kwargs; their video, if asked for, on disk)
+    are taken from it instead of run again, whatever the agent is named now.
 
     Raises:
         ValueError: [unknown food, bad agent SPEC, non-positive sizes, videos without output_dir]
@@ -647,8 +752,16 @@ def evaluate(
     for name, spec in specs.items():
         if spec.kind == "dataset":
             records += dataset_episodes(name, spec.target, foods)
+    journal = Journal(Path(output_dir) / JOURNAL_NAME, resume) if output_dir is not None else None
+    if journal is not None and resume:
+        done = [(t, journal.get(t)) for t in tasks]
+        reused = [dict(record, agent=t.agent) for t, record in done if record is not None]
+        tasks = [t for t, record in done if record is None]
+        if reused and say is not None:
+            say(f"skipping {len(reused)} evaluation episodes journaled in {journal.path}; {len(tasks)} to run")
+        records += reused
     if tasks:
-        records += _run_parallel(tasks, int(processes), progress)
+        records += _run_parallel(tasks, int(processes), progress, journal)
     order = {name: i for i, name in enumerate(specs)}
     records.sort(key=lambda r: (order[r["agent"]], foods.index(r["food"]), r["episode"]))
     config = dict(
@@ -670,8 +783,50 @@ def evaluate(
     return result
 
 
-def _run_parallel(tasks: list[EpisodeTask], processes: int, progress: bool) -> list[dict]:
-    """Runs the tasks in ``processes`` fresh worker processes; the first failure stops the run and is raised."""
+JOURNAL_NAME = "episodes.jsonl"
+
+
+class Journal:
+    """Finished episodes, one JSON line each, keyed by what decides their outcome (not the agent's name)."""
+
+    def __init__(self, path: Path, resume: bool):
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.records: dict[str, dict] = {}
+        if resume and self.path.exists():
+            for line in self.path.read_text().splitlines():
+                try:
+                    entry = json.loads(line)
+                except ValueError:
+                    continue  # the last line of a killed run
+                self.records[entry["key"]] = entry["record"]
+        elif self.path.exists():
+            self.path.unlink()
+
+    @staticmethod
+    def key(task: EpisodeTask) -> str:
+        fields = [task.spec.kind, task.spec.target, task.food, task.seed, task.horizon, task.env_kwargs]
+        if task.video_path:
+            fields += [task.video_path, task.video_camera]
+        return json.dumps(fields, sort_keys=True)
+
+    def get(self, task: EpisodeTask) -> dict | None:
+        record = self.records.get(self.key(task))
+        if record is None or (task.video_path and not Path(task.video_path).is_file()):
+            return None
+        return dict(record, episode=task.episode)
+
+    def add(self, task: EpisodeTask, record: dict) -> None:
+        self.records[self.key(task)] = record
+        with open(self.path, "a") as f:
+            f.write(json.dumps(dict(key=self.key(task), record=_json_safe(record))) + "\n")
+
+
+def _run_parallel(
+    tasks: list[EpisodeTask], processes: int, progress: bool, journal: Journal | None = None
+) -> list[dict]:
+    """Runs the tasks in ``processes`` fresh worker processes, journaling each record; the first failure stops
+    the run and is raised."""
     from tqdm import tqdm
 
     methods = multiprocessing.get_all_start_methods()
@@ -679,7 +834,8 @@ def _run_parallel(tasks: list[EpisodeTask], processes: int, progress: bool) -> l
     records = []
     with tqdm(total=len(tasks), desc="episodes", unit="ep", disable=not progress) as bar:
         with ProcessPoolExecutor(max_workers=processes, mp_context=context, initializer=_init_worker) as pool:
-            pending = {pool.submit(_run_task, t) for t in tasks}
+            task_of = {pool.submit(_run_task, t): t for t in tasks}
+            pending = set(task_of)
             while pending:
                 done, pending = wait(pending, return_when=FIRST_COMPLETED)
                 for future in done:
@@ -693,5 +849,7 @@ def _run_parallel(tasks: list[EpisodeTask], processes: int, progress: bool) -> l
                             raise EvaluationError(str(error)) from None
                         raise EvaluationError(f"a worker process failed: {error!r}") from error
                     records.append(future.result())
+                    if journal is not None:
+                        journal.add(task_of[future], records[-1])
                     bar.update(1)
     return records

@@ -201,8 +201,10 @@ class ScriptedScooper:
 
     # -------------------------------------------------------------------------------------------------------- #
 
-    def reset(self) -> None:
-        """Start a new episode: first phase, fresh noise, a new random plan."""
+    def reset(self, seed: int | None = None) -> None:
+        """Start a new episode: first phase, fresh noise, a new random plan (drawn from ``seed`` when given)."""
+        if seed is not None:
+            self.rng = np.random.default_rng(seed)
         self.phase_index = 0
         self.phase_steps = 0
         self.hold_steps = 0

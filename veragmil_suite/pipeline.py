@@ -4,12 +4,24 @@ The paper's pipeline from scripted data: record demonstrations, train robomimic 
 Each stage runs our own console programs in a child process (veragmil-collect, veragmil-train), exactly as a user
 would type them, with its output kept in a log file beside its results; evaluation goes through
 veragmil_suite.evaluation. veragmil-quickstart and veragmil-study are thin command lines over this module.
+
+A run resumes in its output directory: every piece that is complete is skipped (and said so), so an interrupted
+or partial grid continues where it stopped and a larger one reuses the pieces of a smaller one.
+
+- Recording: one file per profile and food, ``data/<profile>/<food>.hdf5``, complete once it holds the demos
+  asked for (a shorter one, from a killed run, is recorded again: attempts are seeded, so the demos are the same).
+  The foods' files are merged into ``data/<profile>.hdf5`` with a mask ``first<N>`` per demo count: the first N
+  demos of each food, so smaller datasets are prefixes of larger ones.
+- Training: ``runs/<profile>_<algo>_<N>demos_<steps>steps``, complete once its last checkpoint exists and its
+  config equals the one asked for (a different one is refused: pick another output directory).
+- Evaluation: every finished episode is journaled (veragmil_suite.evaluation), and only the missing ones run.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -17,7 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from veragmil_suite.asset_paths import config_path
-from veragmil_suite.foods import TRAINING_FOODS, UNSEEN_FOODS, get_food
+from veragmil_suite.foods import FOODS, TRAINING_FOODS, UNSEEN_FOODS, get_food
 
 # robomimic configs of configs/json per algorithm of the paper (low-dim observations)
 ALGO_CONFIGS = {"bc": "bc", "bc_rnn": "bc_rnn", "bcq": "bcq"}
@@ -25,7 +37,8 @@ ALGO_LABELS = {"bc": "BC", "bc_rnn": "BC-RNN", "bcq": "BCQ"}
 
 # Seeds of recorded episodes and of evaluation episodes never meet: evaluation bowls are not training bowls.
 EVAL_SEED_OFFSET = 100_000
-# Seeds of the foods' recordings are this far apart, so every demo of a dataset has its own bowl and pile.
+# Seeds of the foods' recordings are this far apart (by the food's place in the catalog, seen foods first), so
+# every demo of a dataset has its own bowl and pile, whichever foods a run records.
 FOOD_SEED_STRIDE = 1000
 
 
@@ -35,16 +48,22 @@ class StageError(RuntimeError):
 
 @dataclass
 class PipelineSettings:
-    """Sizes of one run: the small defaults finish in minutes on 2 cores; the paper's sizes are in the README."""
+    """Sizes of one run: the small defaults finish in minutes on 2 cores; the paper's sizes are in the README.
+
+    ``demos_per_food`` and ``eval_steps`` may list several values (learning curves): each demo count trains its
+    own model on the first N demos of each food, and each model is evaluated at every step count of
+    ``eval_steps`` (gradient steps, multiples of ``steps_per_epoch``; by default only at the end of training).
+    """
 
     output_dir: str
     profiles: list[str] = field(default_factory=lambda: ["expert"])
     algos: list[str] = field(default_factory=lambda: ["bc"])
     train_foods: list[str] = field(default_factory=lambda: list(TRAINING_FOODS))
     eval_foods: list[str] = field(default_factory=lambda: list(TRAINING_FOODS + UNSEEN_FOODS))
-    demos_per_food: int = 2
+    demos_per_food: list[int] = field(default_factory=lambda: [2])
     epochs: int = 20
     steps_per_epoch: int = 100
+    eval_steps: list[int] | None = None
     episodes: int = 3
     processes: int = 2
     seed: int = 0
@@ -62,9 +81,27 @@ class PipelineSettings:
 
         for profile in self.profiles:
             get_profile(profile)
-        for name in ("demos_per_food", "epochs", "steps_per_epoch", "episodes", "processes", "horizon"):
+        if isinstance(self.demos_per_food, int):
+            self.demos_per_food = [self.demos_per_food]
+        self.demos_per_food = sorted(set(int(n) for n in self.demos_per_food))
+        for name in ("epochs", "steps_per_epoch", "episodes", "processes", "horizon"):
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"{name} must be a positive integer, got {getattr(self, name)!r}")
+        if not self.demos_per_food or self.demos_per_food[0] < 1:
+            raise ValueError(f"demos_per_food must be positive integers, got {self.demos_per_food!r}")
+        total = self.epochs * self.steps_per_epoch
+        steps = sorted(set(int(k) for k in (self.eval_steps or [total])))
+        bad = [k for k in steps if k < 1 or k > total or k % self.steps_per_epoch]
+        if bad:
+            raise ValueError(
+                f"eval_steps {bad} are not checkpoints of this training: multiples of steps_per_epoch "
+                f"({self.steps_per_epoch}) up to epochs x steps_per_epoch ({total})"
+            )
+        self.eval_steps = steps
+
+    @property
+    def total_steps(self) -> int:
+        return self.epochs * self.steps_per_epoch
 
 
 def _run_logged(command: list[str], log_path: Path, what: str) -> float:
@@ -91,41 +128,170 @@ def _console(name: str) -> list[str]:
     return [*command, "train"] if name == "veragmil-train" else command
 
 
-def record_scripted_dataset(
+# ---------------------------------------------------------------------------------------------------------------- #
+# Recording                                                                                                        #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+def food_seed(seed: int, food: str) -> int:
+    """First attempt seed of ``food``'s recording: apart from every other food's, whichever foods a run records."""
+    order = list(dict.fromkeys([*TRAINING_FOODS, *UNSEEN_FOODS, *FOODS]))
+    return seed + FOOD_SEED_STRIDE * order.index(get_food(food).name)
+
+
+def _recorded(path: Path) -> dict:
+    """What a food's file holds: demos, and the settings it was recorded with."""
+    from veragmil_suite.recording import demo_names, open_dataset
+
+    with open_dataset(path) as f:
+        kwargs = json.loads(f["data"].attrs["env_args"])["env_kwargs"]
+        names = demo_names(f)
+        first = f["data"][names[0]].attrs if names else {}
+        return dict(
+            demos=len(names),
+            food=kwargs.get("food"),
+            n_grains=kwargs.get("n_grains"),
+            horizon=kwargs.get("horizon"),
+            cameras=kwargs.get("camera_names") if kwargs.get("use_camera_obs") else [],
+            profile=str(first.get("profile", "")),
+            seed=int(first["env_seed"]) if "env_seed" in first else None,
+        )
+
+
+def record_food(
     path: Path,
-    foods: list[str],
-    demos_per_food: int,
+    food: str,
+    demos: int,
     profile: str = "expert",
     seed: int = 0,
     horizon: int = 400,
     n_grains: int | None = None,
     cameras: tuple[str, ...] = (),
-) -> float:
-    """Records ``demos_per_food`` successful scripted demos of each food into one HDF5 file; returns seconds."""
+    workers: int = 1,
+) -> float | None:
+    """
+    Records ``demos`` successful scripted demos of ``food`` into ``path`` (attempt seeds from ``seed``); returns
+    the seconds taken, or None when the file already holds them (recorded with the same settings).
+
+    Raises:
+        StageError: [the file was recorded with other settings, or recording failed]
+    """
     path = Path(path)
     if path.exists():
-        raise FileExistsError(f"{path} exists: the pipeline writes new datasets only (remove it or pick another)")
+        held = _recorded(path)
+        wanted = dict(food=food, n_grains=n_grains, horizon=horizon, cameras=list(cameras), profile=profile, seed=seed)
+        differ = {k: (held[k], v) for k, v in wanted.items() if held[k] != v and held["demos"]}
+        if differ:
+            described = ", ".join(f"{k} {a!r} (asked: {b!r})" for k, (a, b) in differ.items())
+            raise StageError(f"{path} was recorded with other settings: {described}; use another output directory")
+        if held["demos"] >= demos:
+            return None
+        path.unlink()  # a killed recording: its attempts are seeded, so recording again gives the same demos
+    path.parent.mkdir(parents=True, exist_ok=True)
+    command = [
+        *_console("veragmil-collect"),
+        *("--device", "scripted", "--profile", profile, "--food", food),
+        *("--episodes", str(demos), "--output", str(path), "--seed", str(seed), "--workers", str(workers)),
+        *("--horizon", str(horizon), "--quiet", "--cameras", *cameras),
+    ]
+    if n_grains is not None:
+        command += ["--n-grains", str(n_grains)]
+    return _run_logged(command, path.with_suffix(".log"), f"recording {food} ({profile})")
+
+
+def demo_mask(n: int) -> str:
+    """The mask (robomimic filter key) of the first ``n`` demos of each food."""
+    return f"first{n}"
+
+
+def merge_profile_dataset(path: Path, food_files: list[Path], demo_counts: list[int]) -> None:
+    """
+    Merges the foods' files into ``path`` (again when the inputs changed) and writes a mask per demo count: the
+    first N demos of each food (its first N seeds).
+    """
+    import h5py
+
+    from veragmil_suite.scripts.dataset_tools import merge_datasets
+
+    sources = [str(p) for p in food_files]
+    stamp = json.dumps([[s, os.path.getmtime(s)] for s in sources])
+    current = None
+    if path.exists():
+        with h5py.File(path, "r") as f:
+            current = f["data"].attrs.get("merged_inputs")
+    if current != stamp:
+        partial = path.with_name(path.name + ".new")
+        if partial.exists():
+            partial.unlink()
+        merge_datasets(sources, partial)
+        with h5py.File(partial, "a") as f:
+            f["data"].attrs["merged_inputs"] = stamp
+        os.replace(partial, path)
+    with h5py.File(path, "a") as f:
+        by_food: dict[str, list[str]] = {}
+        for name in sorted(f["data"].keys(), key=lambda n: int(n.split("_")[-1])):
+            by_food.setdefault(str(f["data"][name].attrs["food"]), []).append(name)
+        for n in demo_counts:
+            names = [name for demos in by_food.values() for name in demos[:n]]
+            key = f"mask/{demo_mask(n)}"
+            if key in f:
+                del f[key]
+            f.create_dataset(key, data=[name.encode() for name in names])
+
+
+def record_scripted_dataset(
+    path: Path,
+    foods: list[str],
+    demo_counts: list[int],
+    profile: str = "expert",
+    seed: int = 0,
+    horizon: int = 400,
+    n_grains: int | None = None,
+    cameras: tuple[str, ...] = (),
+    workers: int = 1,
+    say=print,
+) -> float:
+    """Records (or finds complete) max(``demo_counts``) scripted demos of each food, one file per food beside
+    ``path``, and merges them into ``path`` with a mask per demo count; returns the seconds spent recording."""
+    path = Path(path)
+    folder = path.with_suffix("")
     elapsed = 0.0
-    for i, food in enumerate(foods):
-        command = [
-            *_console("veragmil-collect"),
-            *("--device", "scripted", "--profile", profile, "--food", food),
-            *("--episodes", str(demos_per_food), "--output", str(path), "--seed", str(seed + i * FOOD_SEED_STRIDE)),
-            *("--horizon", str(horizon), "--quiet", "--cameras", *cameras),
-        ]
-        if n_grains is not None:
-            command += ["--n-grains", str(n_grains)]
-        elapsed += _run_logged(command, path.with_suffix(f".{food}.log"), f"recording {food} ({profile})")
+    files = []
+    for food in foods:
+        file = folder / f"{food}.hdf5"
+        seconds = record_food(
+            file, food, max(demo_counts), profile, food_seed(seed, food), horizon, n_grains, cameras, workers
+        )
+        if seconds is None:
+            say(f"skipping recording {profile} {food}: {file} holds its {max(demo_counts)} demos")
+        else:
+            elapsed += seconds
+        files.append(file)
+    merge_profile_dataset(path, files, demo_counts)
     return elapsed
 
 
-def training_config(
-    algo: str, dataset: Path, output_dir: Path, name: str, epochs: int, steps_per_epoch: int, seed: int = 1
-) -> dict:
-    """Our stock config of ``algo`` (configs/json) shortened to ``epochs`` x ``steps_per_epoch`` gradient steps.
+# ---------------------------------------------------------------------------------------------------------------- #
+# Training                                                                                                         #
+# ---------------------------------------------------------------------------------------------------------------- #
 
-    Rollouts during training are off (the evaluation scores the last checkpoint on every food afterwards) and the
-    last epoch is saved.
+
+def training_config(
+    algo: str,
+    dataset: Path,
+    output_dir: Path,
+    name: str,
+    epochs: int,
+    steps_per_epoch: int,
+    seed: int = 1,
+    filter_key: str | None = None,
+    save_epochs: list[int] | None = None,
+) -> dict:
+    """Our stock config of ``algo`` (configs/json) shortened to ``epochs`` x ``steps_per_epoch`` gradient steps,
+    trained on the demos of ``filter_key`` (all when None).
+
+    Rollouts during training are off (the evaluation scores checkpoints on every food afterwards); the last epoch
+    and ``save_epochs`` are saved.
     """
     if algo not in ALGO_CONFIGS:
         raise ValueError(f"unknown algorithm {algo!r}; accepted: {sorted(ALGO_CONFIGS)}")
@@ -135,29 +301,63 @@ def training_config(
     experiment.update(name=name, epoch_every_n_steps=steps_per_epoch, validate=False, render_video=False)
     experiment["rollout"]["enabled"] = False
     experiment["save"].update(enabled=True, every_n_epochs=epochs, on_best_rollout_success_rate=False)
+    experiment["save"]["epochs"] = sorted(set(save_epochs or []) - {epochs})
     config["train"].update(data=str(dataset), output_dir=str(output_dir), num_epochs=epochs, seed=seed)
+    config["train"]["hdf5_filter_key"] = filter_key
     return config
 
 
-def train_checkpoint(config: dict, work_dir: Path) -> tuple[Path, float]:
-    """Trains with veragmil-train; returns the last checkpoint and the wall time."""
+def _checkpoints(config: dict) -> dict[int, Path]:
+    """The saved checkpoints of a training run by epoch (its newest run folder)."""
+    name = config["experiment"]["name"]
+    runs = sorted(Path(config["train"]["output_dir"]).glob(f"{name}/*/models"), key=lambda p: p.stat().st_mtime)
+    if not runs:
+        return {}
+    return {int(p.stem.split("_")[-1]): p for p in runs[-1].glob("model_epoch_*.pth")}
+
+
+def train_checkpoint(config: dict, work_dir: Path, say=print) -> tuple[dict[int, Path], float | None]:
+    """
+    Trains with veragmil-train unless a finished run of the same config is there; returns the checkpoints by
+    epoch and the wall time (None when skipped).
+
+    Raises:
+        StageError: [training failed or wrote no last checkpoint, or the run's folder holds another config]
+    """
     work_dir = Path(work_dir)
     name = config["experiment"]["name"]
     config_file = work_dir / f"{name}.json"
+    epochs = int(config["train"]["num_epochs"])
+    if config_file.exists():
+        if json.loads(config_file.read_text()) != config:
+            raise StageError(f"{config_file} holds another config for {name}; use another output directory")
+        found = _checkpoints(config)
+        if epochs in found:
+            say(f"skipping training {name}: its last checkpoint is there ({found[epochs]})")
+            return found, None
+        shutil.rmtree(Path(config["train"]["output_dir"]) / name, ignore_errors=True)  # killed: train again
     config_file.write_text(json.dumps(config, indent=4))
     seconds = _run_logged(
         [*_console("veragmil-train"), "--config", str(config_file)], work_dir / f"{name}.log", f"training {name}"
     )
-    checkpoints = sorted(
-        Path(config["train"]["output_dir"]).glob(f"{name}/*/models/*.pth"), key=lambda p: p.stat().st_mtime
-    )
-    if not checkpoints:
-        raise StageError(f"training {name} wrote no checkpoint under {config['train']['output_dir']}/{name}")
-    return checkpoints[-1], seconds
+    found = _checkpoints(config)
+    if epochs not in found:
+        raise StageError(f"training {name} wrote no last checkpoint under {config['train']['output_dir']}/{name}")
+    return found, seconds
+
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# The grid                                                                                                         #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+def _steps_label(steps: int) -> str:
+    return f"{steps // 1000}k" if steps % 1000 == 0 else str(steps)
 
 
 def run_pipeline(settings: PipelineSettings, progress: bool = True):
-    """Records one dataset per profile, trains every algorithm on each, evaluates them and the scripted operators.
+    """Records one dataset per profile, trains every algorithm on each, evaluates them and the scripted operators,
+    skipping every piece a previous run in the same output directory completed.
 
     Returns the evaluation result (veragmil_suite.evaluation.EvaluationResult); everything is written under
     ``settings.output_dir``: data/, runs/, eval/ and timings.json.
@@ -167,37 +367,63 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True):
     out = Path(settings.output_dir)
     (out / "data").mkdir(parents=True, exist_ok=True)
     (out / "runs").mkdir(parents=True, exist_ok=True)
-    timings: dict[str, float] = {}
+    timings_file = out / "timings.json"
+    timings: dict[str, float] = json.loads(timings_file.read_text()) if timings_file.exists() else {}
     agents: dict[str, str] = {}
 
     def say(message: str) -> None:
         if progress:
             print(f"[veragmil] {message}", flush=True)
 
+    def note(key: str, seconds: float | None) -> None:
+        if seconds is not None:
+            timings[key] = round(seconds, 1)
+            timings_file.write_text(json.dumps(timings, indent=2))
+
+    sweep_demos = len(settings.demos_per_food) > 1
+    sweep_steps = len(settings.eval_steps) > 1
     for profile in settings.profiles:
         dataset = out / "data" / f"{profile}.hdf5"
-        say(f"recording {settings.demos_per_food} scripted '{profile}' demos of each of {settings.train_foods}")
-        timings[f"record {profile}"] = record_scripted_dataset(
+        counts = settings.demos_per_food
+        say(f"recording {max(counts)} scripted '{profile}' demos of each of {settings.train_foods}")
+        seconds = record_scripted_dataset(
             dataset,
             settings.train_foods,
-            settings.demos_per_food,
+            counts,
             profile=profile,
             seed=settings.seed,
             horizon=settings.horizon,
             n_grains=settings.n_grains,
+            workers=settings.processes,
+            say=say,
         )
+        note(f"record {profile}", seconds or None)
         if settings.score_demonstrators:
             # the demonstrator itself, live on every evaluated food: the paper's Human column (scripted here)
             agents[f"{profile} operator"] = f"expert:{profile}"
         for algo in settings.algos:
-            name = f"{profile}_{algo}"
-            config = training_config(
-                algo, dataset, out / "runs", name, settings.epochs, settings.steps_per_epoch, seed=settings.seed + 1
-            )
-            steps = f"{settings.epochs} x {settings.steps_per_epoch}"
-            say(f"training {ALGO_LABELS[algo]} on {dataset.name} ({steps} gradient steps)")
-            checkpoint, timings[f"train {name}"] = train_checkpoint(config, out / "runs")
-            agents[f"{profile} {ALGO_LABELS[algo]}"] = str(checkpoint)
+            for n in counts:
+                name = f"{profile}_{algo}_{n}demos_{settings.total_steps}steps"
+                config = training_config(
+                    algo,
+                    dataset,
+                    out / "runs",
+                    name,
+                    settings.epochs,
+                    settings.steps_per_epoch,
+                    seed=settings.seed + 1,
+                    filter_key=demo_mask(n),
+                    save_epochs=[k // settings.steps_per_epoch for k in settings.eval_steps],
+                )
+                steps = f"{settings.epochs} x {settings.steps_per_epoch}"
+                say(f"training {ALGO_LABELS[algo]} on {n} demos per food of {dataset.name} ({steps} gradient steps)")
+                checkpoints, seconds = train_checkpoint(config, out / "runs", say=say)
+                note(f"train {name}", seconds)
+                for k in settings.eval_steps:
+                    label = f"{profile} {ALGO_LABELS[algo]}"
+                    label += f" {n} demos" if sweep_demos else ""
+                    label += f" {_steps_label(k)} steps" if sweep_steps else ""
+                    agents[label] = str(checkpoints[k // settings.steps_per_epoch])
 
     say(f"evaluating {len(agents)} agents x {settings.episodes} episodes on {settings.eval_foods}")
     env_kwargs = {"n_grains": settings.n_grains} if settings.n_grains is not None else None
@@ -212,8 +438,9 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True):
         horizon=settings.horizon,
         output_dir=str(out / "eval"),
         progress=progress,
+        resume=True,
+        say=say,
         **kwargs,
     )
-    timings["evaluate"] = time.perf_counter() - start
-    (out / "timings.json").write_text(json.dumps({k: round(v, 1) for k, v in timings.items()}, indent=2))
+    note("evaluate", time.perf_counter() - start)
     return result

@@ -36,6 +36,7 @@ import numpy as np
 import robosuite
 
 import veragmil_suite
+from veragmil_suite.environments.scoop import StageTracker
 
 ENV_NAME = "ScoopGranular"
 ROBOSUITE_ENV_TYPE = 1  # robomimic's EnvType.ROBOSUITE_TYPE
@@ -56,6 +57,7 @@ METRIC_KEYS = (
     "spoon_volume_cm3",
     "completion_time_s",
     "physics_error",
+    "stage",
 )
 
 
@@ -209,14 +211,16 @@ class EpisodeRecorder:
         self._states, self._actions, self._rewards, self._successes = [], [], [], []
         self._obs, self._next_obs = [], []
         self._info = {}
+        self._stages = StageTracker()
         self.model_file = None
         self.obs = None
         self._converted = None
 
-    def reset(self) -> dict:
-        """Reset the env and restart it as playback will; returns robosuite's observation."""
+    def reset(self, seed: int | None = None) -> dict:
+        """Reset the env (seeded first when ``seed`` is given) and restart it as playback will; returns robosuite's
+        observation."""
         self._clear()
-        self.env.reset()
+        self.env.reset(seed=seed)
         raw, self.model_file = restart_from_current_state(self.env)
         self.obs = raw
         self._converted = robomimic_obs(self.env, raw)
@@ -237,6 +241,7 @@ class EpisodeRecorder:
         self._obs.append(self._converted)
         self._next_obs.append(after)
         self._info = info
+        self._stages.update(info)
         self.obs, self._converted = raw, after
         return raw, reward, done, info
 
@@ -258,15 +263,18 @@ class EpisodeRecorder:
             obs={k: np.stack([o[k] for o in self._obs]) for k in self._obs[0]},
             next_obs={k: np.stack([o[k] for o in self._next_obs]) for k in self._next_obs[0]},
             model_file=self.model_file,
-            metrics=episode_metrics(self._info),
+            metrics=episode_metrics(self._info, self._stages.stage),
             attrs=dict(attrs or {}),
         )
 
 
-def episode_metrics(info: dict) -> dict:
-    """The paper's per-episode metrics from the last step's info (success, spilled pieces and volume, time)."""
-    out = {}
+def episode_metrics(info: dict, stage: str) -> dict:
+    """The paper's per-episode metrics from the last step's info (success, spilled pieces and volume, time), and
+    the furthest stage the episode reached (environments.scoop.StageTracker)."""
+    out = {"stage": str(stage)}
     for key in METRIC_KEYS:
+        if key == "stage":
+            continue
         value = info.get(key, "" if key == "physics_error" else 0)
         if isinstance(value, (bool, np.bool_)):
             out[key] = bool(value)

@@ -31,6 +31,10 @@ PRE_SCOOP_EEF_ROT = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0
 _LEVEL_TURN = T.quat2mat(T.axisangle2quat(np.array([0.0, -np.pi / 4, 0.0])))
 POST_SCOOP_EEF_ROT = _LEVEL_TURN @ PRE_SCOOP_EEF_ROT
 
+# How far a scoop got, in order; a state's stage comes from the simulator state alone (ScoopGranular.scoop_stage),
+# so any agent's episode is labelled the same way: its furthest stage, and "held" once success has held.
+SCOOP_STAGES = ("start", "reached pile", "loaded spoon", "lifted clear", "at post-scoop pose", "held")
+
 
 class ScoopGranular(ManipulationEnv):
     """
@@ -371,6 +375,8 @@ class ScoopGranular(ManipulationEnv):
         self._match_loaded_pile()
         gripper = self.robots[0].gripper["right"]
         self.spoon_site_id = model.site_name2id(gripper.important_sites["spoon_frame"])
+        self.spoon_geom_ids = np.array([model.geom_name2id(n) for n in gripper.important_geoms["spoon"]])
+        self.grain_geom_ids = np.flatnonzero(np.isin(model.geom_bodyid, self.grain_body_ids))
         self.eef_site_id = self.robots[0].eef_site_id["right"]
         self.grain_volumes_m3 = self.grain_pile.volumes_m3
         if self.min_portion_cm3 is not None:
@@ -577,6 +583,7 @@ class ScoopGranular(ManipulationEnv):
                 scooped_volume_cm3=0.0,
                 completion_time_s=elapsed,
                 success=False,
+                stage=SCOOP_STAGES[0],
                 physics_error=self._physics_error,
             )
         m = self._scoop_metrics()
@@ -592,8 +599,41 @@ class ScoopGranular(ManipulationEnv):
             spoon_volume_cm3=m["spoon_volume_m3"] / M3_PER_CM3,
             completion_time_s=self._success_time if self._success_time is not None else elapsed,
             success=success,
+            stage=self.scoop_stage(),
             physics_error="",
         )
+
+    def scoop_stage(self) -> str:
+        """
+        The furthest stage of SCOOP_STAGES this state shows, short of "held" (success held over time, which the
+        episode loop decides): the spoon at the post-scoop pose (position and tilt within the success
+        tolerances) carrying the minimum portion; that portion lifted clear of the rim (every grain in the
+        spoon above the rim by a grain's radius); the minimum portion in the spoon; the spoon touching a grain.
+        """
+        m = self._scoop_metrics()
+        loaded = m["spoon_volume_m3"] >= self.min_portion_m3
+        if loaded:
+            at_pose = (
+                np.linalg.norm(m["spoon_pos"] - self._desired_pos()) <= self.success_pos_tolerance
+                and m["spoon_tilt"] <= self.success_tilt_tolerance
+            )
+            if at_pose:
+                return SCOOP_STAGES[4]
+            data = self.sim.data
+            bowl_axis = data.body_xmat[self.bowl_body_id].reshape(3, 3)[:, 2]
+            heights = (data.body_xpos[self.grain_body_ids[m["in_spoon"]]] - self._rim_center()) @ bowl_axis
+            return SCOOP_STAGES[3] if heights.min() > self.grain_radius_max else SCOOP_STAGES[2]
+        return SCOOP_STAGES[1] if self._spoon_touches_grain() else SCOOP_STAGES[0]
+
+    def _spoon_touches_grain(self) -> bool:
+        """Whether a contact of the last collision pass joins a spoon geom and a grain."""
+        data = self.sim.data._data
+        if data.ncon == 0:
+            return False
+        geoms = data.contact.geom[: data.ncon]
+        spoon = np.isin(geoms, self.spoon_geom_ids)
+        grain = np.isin(geoms, self.grain_geom_ids)
+        return bool(((spoon[:, 0] & grain[:, 1]) | (spoon[:, 1] & grain[:, 0])).any())
 
     # ------------------------------------------------------------------------------------------------------------ #
     # Observations                                                                                                   #
@@ -665,10 +705,35 @@ class ScoopGranular(ManipulationEnv):
         super()._initialize_sim(xml_string)
         self._badqacc_seen = 0
 
-    def reset(self):
+    def reset(self, seed: int | None = None):
+        """
+        robosuite's reset; with ``seed`` the env's generator is seeded first, so the episode (pile variant, bowl
+        place and turn, initialization noise) depends on that seed alone, whatever episodes came before.
+        """
+        if seed is not None:
+            self.rng = np.random.default_rng(seed)
         obs = super().reset()
         self._badqacc_seen = _instability_warnings(self.sim.data)
         return obs
+
+
+class StageTracker:
+    """The furthest of SCOOP_STAGES an episode reached, from each step's info; "held" when its last step succeeds
+    (the episode's success, as its metrics count it)."""
+
+    def __init__(self):
+        self.index = 0
+        self.success = False
+
+    def update(self, info: dict) -> None:
+        stage = info.get("stage")
+        if stage in SCOOP_STAGES:
+            self.index = max(self.index, SCOOP_STAGES.index(stage))
+        self.success = bool(info.get("success", False))
+
+    @property
+    def stage(self) -> str:
+        return SCOOP_STAGES[-1] if self.success else SCOOP_STAGES[self.index]
 
 
 _PRE_SCOOP_CACHE: dict[tuple, np.ndarray] = {}

@@ -10,6 +10,10 @@ operator's success rate counts every attempt (the paper's "Human" column).
 Each kept episode is flushed to the file when it ends: stopping the script (Ctrl-C, or killing it) loses at most
 the episode in progress. Giving an existing file appends to it.
 
+Attempt k (from 0) resets the environment with seed ``--seed`` + k (and seeds the scripted expert with it), so an
+episode depends on its seed alone. The scripted device can record in ``--workers`` processes: attempts run in
+parallel and are kept or discarded in seed order, so the file is the same for any number of workers.
+
 Example:
     veragmil-collect --device scripted --food rice --episodes 2 --output out.hdf5
     veragmil-collect --device keyboard --food pasta --episodes 30 --output pasta_keyboard.hdf5 --operator alice
@@ -57,7 +61,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--camera-size", type=int, nargs="+", default=[84], metavar="PX", help="height [width]")
     p.add_argument("--depth", action="store_true", help="also record <camera>_depth (metres)")
-    p.add_argument("--seed", type=int, default=0, help="seeds the environment and the scripted expert")
+    p.add_argument("--seed", type=int, default=0, help="attempt k runs with seed SEED + k (env and scripted expert)")
+    p.add_argument(
+        "--workers", type=int, default=1, help="scripted device: parallel recording processes (same file for any N)"
+    )
     p.add_argument(
         "--keep",
         choices=KEEP_POLICIES,
@@ -151,8 +158,8 @@ class ScriptedOperator:
         self.name = f"scripted-{self.expert.profile.name}"
         self.command = None
 
-    def begin(self) -> None:
-        self.expert.reset()
+    def begin(self, seed: int | None = None) -> None:
+        self.expert.reset(seed=seed)
         self.command = None
 
     def action(self, obs: dict) -> np.ndarray | None:
@@ -175,7 +182,7 @@ class TeleopOperator:
         self.name = name
         self.command = None
 
-    def begin(self) -> None:
+    def begin(self, seed: int | None = None) -> None:
         self.command = None
         self.device.start_control()
         if hasattr(self.device, "recording"):
@@ -247,10 +254,13 @@ def make_operator(args, env):
 # ---------------------------------------------------------------------------------------------------------------- #
 
 
-def run_episode(env, recorder, operator, success_hold_s: float, render: bool, realtime: bool) -> str:
-    """Record one episode; returns why it ended: "success", "horizon", "operator", "gave up" or "physics"."""
-    obs = recorder.reset()
-    operator.begin()
+def run_episode(
+    env, recorder, operator, success_hold_s: float, render: bool, realtime: bool, seed: int | None = None
+) -> str:
+    """Record one episode (env and operator seeded with ``seed``); returns why it ended: "success", "horizon",
+    "operator", "gave up" or "physics"."""
+    obs = recorder.reset(seed=seed)
+    operator.begin(seed=seed)
     hold_steps = max(1, int(round(success_hold_s * env.control_freq))) if success_hold_s > 0 else None
     streak = 0
     while True:
@@ -270,6 +280,71 @@ def run_episode(env, recorder, operator, success_hold_s: float, render: bool, re
             return "horizon"
         if realtime:
             time.sleep(max(0.0, env.control_timestep - (time.perf_counter() - start)))
+
+
+def record_attempt(env, recorder, operator, args, seed: int, render: bool = False, realtime: bool = False):
+    """One attempt with ``seed``: (seed, why it ended, the Episode, or None when no step was taken)."""
+    reason = run_episode(env, recorder, operator, args.success_hold, render, realtime, seed=seed)
+    if not recorder.num_steps:
+        return seed, reason, None
+    return seed, reason, recorder.episode(attrs=dict(end_reason=reason, pile_variant=int(env.pile_variant), seed=seed))
+
+
+def local_attempts(env, recorder, operator, args, render: bool, realtime: bool):
+    """Attempts in this process, one at a time, seeds SEED, SEED + 1, ...: yields record_attempt's tuples."""
+    seed = args.seed
+    while True:
+        yield record_attempt(env, recorder, operator, args, seed, render, realtime)
+        seed += 1
+
+
+_WORKER: dict = {}  # per recording worker process: its env, recorder, operator and arguments
+
+
+def _init_worker(args: argparse.Namespace, env_kwargs: dict) -> None:
+    """A recording worker: its own env and scripted operator, built once; Ctrl-C is the parent's to handle."""
+    import signal
+
+    import robosuite
+
+    import veragmil_suite  # noqa: F401
+    from veragmil_suite import recording
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    env = robosuite.make("ScoopGranular", **env_kwargs, has_renderer=False, seed=args.seed)
+    _WORKER.update(
+        env=env, recorder=recording.EpisodeRecorder(env), operator=ScriptedOperator(env, args.profile, args.seed)
+    )
+    _WORKER["args"] = args
+
+
+def _worker_attempt(seed: int):
+    w = _WORKER
+    return record_attempt(w["env"], w["recorder"], w["operator"], w["args"], seed)
+
+
+def parallel_attempts(args, env_kwargs: dict):
+    """
+    Scripted attempts in ``args.workers`` processes, yielded in seed order like local_attempts (a few attempts
+    run ahead; those not needed are cancelled or dropped when the caller stops).
+    """
+    import collections
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    methods = multiprocessing.get_all_start_methods()
+    context = multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+    pool = ProcessPoolExecutor(args.workers, mp_context=context, initializer=_init_worker, initargs=(args, env_kwargs))
+    ahead = collections.deque()
+    seed = args.seed
+    try:
+        while True:
+            while len(ahead) < 2 * args.workers:
+                ahead.append(pool.submit(_worker_attempt, seed))
+                seed += 1
+            yield ahead.popleft().result()
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def ask_keep(prompt: str) -> bool:
@@ -300,6 +375,12 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.episodes < 1:
         raise SystemExit("veragmil-collect: --episodes must be at least 1")
+    if args.workers < 1:
+        raise SystemExit(f"veragmil-collect: --workers must be at least 1, got {args.workers}")
+    if args.workers > 1 and args.device != "scripted":
+        raise SystemExit(
+            f"veragmil-collect: --workers {args.workers} needs --device scripted (one person drives one device)"
+        )
     if not os.environ.get("DISPLAY"):
         os.environ.setdefault("PYNPUT_BACKEND", "dummy")  # robosuite.devices imports pynput, which wants X
     if args.cameras:
@@ -339,30 +420,37 @@ def main(argv: list[str] | None = None) -> int:
         print(f"veragmil-collect: {e}", file=sys.stderr)
         return 2
 
-    env = robosuite.make(
-        "ScoopGranular",
-        **env_kwargs,
-        has_renderer=render,
-        render_camera=args.cameras[0] if args.cameras else "overhead",
-        seed=args.seed,
-    )
-    operator = make_operator(args, env)
-    recorder = recording.EpisodeRecorder(env)
+    env = operator = None
+    if args.workers > 1:
+        attempts_iter = parallel_attempts(args, env_kwargs)
+    else:
+        env = robosuite.make(
+            "ScoopGranular",
+            **env_kwargs,
+            has_renderer=render,
+            render_camera=args.cameras[0] if args.cameras else "overhead",
+            seed=args.seed,
+        )
+        operator = make_operator(args, env)
+        recorder = recording.EpisodeRecorder(env)
+        attempts_iter = local_attempts(env, recorder, operator, args, render, realtime=source == "human")
     kept, attempts, results = 0, 0, []
     if not args.quiet:
-        print(f"recording {args.food} with {args.device} ({operator_name}) into {args.output}; keep: {keep_policy}")
+        workers = f", {args.workers} workers" if args.workers > 1 else ""
+        print(
+            f"recording {args.food} with {args.device} ({operator_name}) into {args.output}; keep: {keep_policy}"
+            + workers
+        )
     try:
         while kept < args.episodes and (max_attempts is None or attempts < max_attempts):
-            reason = run_episode(env, recorder, operator, args.success_hold, render, realtime=source == "human")
+            seed, reason, episode = next(attempts_iter)
             attempts += 1
-            if recorder.num_steps == 0:
+            if episode is None:
                 continue
-            episode = recorder.episode(
-                attrs=dict(attempt=attempts, end_reason=reason, pile_variant=int(env.pile_variant))
-            )
+            episode.attrs["attempt"] = attempts
             metrics = episode.metrics
             print(episode_line(attempts, metrics, episode.num_samples, reason), flush=True)
-            command = operator.command
+            command = operator.command if operator is not None else None
             if keep_policy == "ask" and command not in ("keep", "discard", "reset"):
                 verdict = operator.wait_for_verdict() if isinstance(operator, TeleopOperator) else None
                 command = verdict or ("keep" if ask_keep("keep this episode? [Y/n] ") else "discard")
@@ -379,14 +467,17 @@ def main(argv: list[str] | None = None) -> int:
                 kept += 1
                 print(f"  saved as {name} ({kept}/{args.episodes})", flush=True)
             else:
-                writer.log_discarded(metrics, attrs=dict(attempt=attempts, end_reason=reason))
+                writer.log_discarded(metrics, attrs=dict(attempt=attempts, end_reason=reason, seed=seed))
                 print("  discarded", flush=True)
     except KeyboardInterrupt:
         kept = len(writer.written)
         print(f"\ninterrupted: the episode in progress is dropped; {kept} episodes saved to {args.output}")
     finally:
-        operator.close()
-        env.close()
+        attempts_iter.close()
+        if operator is not None:
+            operator.close()
+        if env is not None:
+            env.close()
     _print_summary(results, kept, args.output)
     if kept < args.episodes:
         print(f"veragmil-collect: saved {kept} of {args.episodes} requested episodes", file=sys.stderr)

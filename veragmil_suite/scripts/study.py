@@ -4,7 +4,10 @@ veragmil-study: the paper's grid end to end from scripted data.
 Two operator profiles (``expert``, smooth like the paper's VR operators, and ``spacemouse``, one axis at a time
 like its 3D-mouse operators) each record a dataset of the training foods; BC, BC-RNN and BCQ train on each; every
 checkpoint, and each scripted operator itself (the "Human" column's stand-in), is scored on all seven foods.
-Tables II and III (markdown, CSV, JSON) and a bar chart land in <output-dir>/eval.
+Tables II and III (markdown, CSV, JSON), the stage table and a bar chart land in <output-dir>/eval.
+
+Run again with the same --output-dir, an interrupted or partial study resumes: recordings, trainings and
+evaluation episodes already complete are skipped (each named), so a grid can be run in pieces.
 
     veragmil-study                                   # small default: minutes per model on 2 cores
     veragmil-study --demos-per-food 30 --epochs 2000 --episodes 50    # the paper's sizes (see the README)
@@ -28,18 +31,33 @@ def add_pipeline_arguments(p: argparse.ArgumentParser, defaults: PipelineSetting
     p.add_argument(
         "--output-dir",
         default=argparse.SUPPRESS,
-        help=f"where data, runs and tables go (default: {defaults.output_dir}/<date-time>: no run overwrites another)",
+        help=f"where data, runs and tables go; an existing one is resumed (default: {defaults.output_dir}/<date-time>)",
     )
     p.set_defaults(output_base=defaults.output_dir)
     p.add_argument("--profiles", nargs="+", choices=sorted(PROFILES), default=defaults.profiles)
     p.add_argument("--algos", nargs="+", choices=sorted(ALGO_CONFIGS), default=defaults.algos)
     p.add_argument("--train-foods", nargs="+", choices=sorted(FOODS), default=defaults.train_foods)
     p.add_argument("--eval-foods", nargs="+", choices=sorted(FOODS), default=defaults.eval_foods)
-    p.add_argument("--demos-per-food", type=int, default=defaults.demos_per_food, help="the paper: 30")
+    p.add_argument(
+        "--demos-per-food",
+        type=int,
+        nargs="+",
+        default=defaults.demos_per_food,
+        help="the paper: 30; several values train one model each (a learning curve over data)",
+    )
     p.add_argument("--epochs", type=int, default=defaults.epochs, help="the configs' own: 2000")
     p.add_argument("--steps-per-epoch", type=int, default=defaults.steps_per_epoch, help="gradient steps per epoch")
+    p.add_argument(
+        "--eval-steps",
+        type=int,
+        nargs="+",
+        default=None,
+        help="evaluate the checkpoints at these gradient steps (a learning curve; default: the last only)",
+    )
     p.add_argument("--episodes", type=int, default=defaults.episodes, help="evaluation episodes per food and model")
-    p.add_argument("--processes", type=int, default=defaults.processes, help="parallel evaluation processes")
+    p.add_argument(
+        "--processes", type=int, default=defaults.processes, help="parallel recording and evaluation processes"
+    )
     p.add_argument("--horizon", type=int, default=defaults.horizon, help="longest episode, control steps")
     p.add_argument("--n-grains", type=int, default=None, help="grains in the bowl (default: each food's own)")
     p.add_argument("--seed", type=int, default=defaults.seed)
@@ -55,6 +73,7 @@ def settings_from_args(args: argparse.Namespace) -> PipelineSettings:
         demos_per_food=args.demos_per_food,
         epochs=args.epochs,
         steps_per_epoch=args.steps_per_epoch,
+        eval_steps=args.eval_steps,
         episodes=args.episodes,
         processes=args.processes,
         horizon=args.horizon,
@@ -72,11 +91,12 @@ def run(parser: argparse.ArgumentParser, argv: list[str] | None) -> int:
         parser.error(str(error))
     try:
         result = run_pipeline(settings)
-    except (StageError, FileExistsError) as error:
+    except StageError as error:
         print(f"{parser.prog}: {error}", file=sys.stderr)
         return 1
     print(result.markdown())
-    print(f"\nTables, chart and per-episode results: {settings.output_dir}/eval")
+    print(result.stages_markdown())
+    print(f"Tables, chart and per-episode results: {settings.output_dir}/eval")
     return 0
 
 
