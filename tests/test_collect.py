@@ -54,6 +54,53 @@ def test_scripted_collection_runs_headless_in_its_automation_form(tmp_path):
         assert all(a["device"] == "scripted" for a in attempts)
 
 
+def _collect(out, *args):
+    return subprocess.run(
+        [str(BIN / "veragmil-collect"), "--device", "scripted", *LIGHT, "--output", str(out), "--quiet", *args],
+        env=_headless_env(),
+        stdin=subprocess.DEVNULL,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+
+
+def test_parallel_recording_writes_the_same_demos_as_serial_recording(tmp_path):
+    # seed 3's first attempts; --cameras with no name: low-dim only
+    serial, parallel = tmp_path / "serial.hdf5", tmp_path / "parallel.hdf5"
+    for out, workers in ((serial, "1"), (parallel, "2")):
+        result = _collect(out, "--episodes", "3", "--seed", "3", "--workers", workers, "--cameras")
+        assert result.returncode == 0, result.stderr[-2000:]
+    with open_dataset(serial) as a, open_dataset(parallel) as b:
+        assert sorted(a["data"].keys()) == sorted(b["data"].keys()) == ["demo_0", "demo_1", "demo_2"]
+        seeds = [int(a["data"][f"demo_{i}"].attrs["seed"]) for i in range(3)]
+        assert seeds == sorted(seeds) and seeds[0] >= 3 and len(set(seeds)) == 3
+        for name in a["data"]:
+            x, y = a["data"][name], b["data"][name]
+            assert x.attrs["seed"] == y.attrs["seed"] and x.attrs["stage"] == y.attrs["stage"] == "held"
+            np.testing.assert_array_equal(x["actions"][:], y["actions"][:])
+            np.testing.assert_array_equal(x["states"][:], y["states"][:])
+            np.testing.assert_array_equal(x["obs/object"][:], y["obs/object"][:])
+    # the attempt seeded 4 is the episode of seed 4, whatever came before it
+    alone = tmp_path / "alone.hdf5"
+    assert _collect(alone, "--episodes", "1", "--seed", "4", "--cameras").returncode == 0
+    with open_dataset(serial) as a, open_dataset(alone) as c:
+        second = next(n for n in a["data"] if a["data"][n].attrs["seed"] == 4)
+        np.testing.assert_array_equal(a["data"][second]["states"][:], c["data/demo_0/states"][:])
+
+
+def test_workers_need_the_scripted_device(tmp_path):
+    result = subprocess.run(
+        [str(BIN / "veragmil-collect"), "--device", "keyboard", "--workers", "2", "--output", str(tmp_path / "k.h5")],
+        env=_headless_env(),
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert result.returncode != 0 and "--workers 2 needs --device scripted" in result.stderr
+    assert not (tmp_path / "k.h5").exists()
+
+
 def test_ctrl_c_mid_episode_keeps_the_saved_episodes(tmp_path):
     out = tmp_path / "interrupted.hdf5"
     args = [

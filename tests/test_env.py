@@ -8,7 +8,7 @@ import robosuite.utils.transform_utils as T
 from helpers_env import grain_positions, make_env
 
 from veragmil_suite.controllers import load_scoop_controller_config
-from veragmil_suite.environments.scoop import POST_SCOOP_EEF_ROT, PRE_SCOOP_EEF_ROT
+from veragmil_suite.environments.scoop import POST_SCOOP_EEF_ROT, PRE_SCOOP_EEF_ROT, SCOOP_STAGES, StageTracker
 from veragmil_suite.foods import FOODS
 from veragmil_suite.kinematics import solve_pose_ik
 from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
@@ -211,6 +211,51 @@ def test_success_on_hand_made_states():
     assert info["spill_fraction"] > 0.05
     assert not info["success"]
     env.close()
+
+
+def _move_bowl(env, offset):
+    adr = env.bowl_qpos_adr
+    env.sim.data.qpos[adr : adr + 3] += offset
+    env.sim.forward()
+
+
+def test_stages_on_hand_made_states():
+    env = make_env("rice", min_portion_cm3=0.3)
+    env.reset()
+    assert env.scoop_stage() == "start"  # the spoon above the pile, touching nothing
+
+    # one grain pressed into the spoon's floor: a touch, far below the portion
+    _hold_spoon_at_goal(env, n_in_spoon=0)
+    spoon_pos = env.sim.data.site_xpos[env.spoon_site_id]
+    spoon_rot = env.sim.data.site_xmat[env.spoon_site_id].reshape(3, 3)
+    adr = env.grain_qpos_adr[0]
+    env.sim.data.qpos[adr : adr + 3] = spoon_pos + spoon_rot @ np.array([0.0, 0.0, -SPOON_SHAPE.depth])
+    env.sim.forward()
+    assert env.scoop_info()["grains_in_spoon"] == 1 and env.scoop_info()["stage"] == "reached pile"
+
+    # a full spoon at the post-scoop pose, still: at the pose (and a success; "held" is the episode's to say)
+    env.reset()
+    _hold_spoon_at_goal(env)
+    assert env.scoop_stage() == "at post-scoop pose" and env._check_success()
+    # the same spoon with the bowl (and so the goal) 10 cm away: lifted clear of the rim, not at the pose
+    _move_bowl(env, [-0.10, 0.0, 0.0])
+    assert env.scoop_stage() == "lifted clear"
+    # the bowl raised so its rim stands above the spoon's load: loaded, not lifted clear
+    _move_bowl(env, [0.0, 0.0, 0.25])
+    assert env.scoop_stage() == "loaded spoon"
+    env.close()
+
+
+def test_stage_tracker_keeps_the_furthest_stage_and_held_means_success():
+    tracker = StageTracker()
+    assert tracker.stage == "start"
+    for stage in ("reached pile", "loaded spoon", "lifted clear", "reached pile", "start"):
+        tracker.update(dict(stage=stage, success=False))
+    assert tracker.stage == "lifted clear"  # spilling it all later does not undo how far the scoop got
+    tracker.update(dict(stage="at post-scoop pose", success=True))
+    assert tracker.stage == "held" == SCOOP_STAGES[-1]
+    tracker.update(dict(stage="at post-scoop pose", success=False))
+    assert tracker.stage == "at post-scoop pose"  # success is the last step's, as the episode's metrics count it
 
 
 def test_same_seed_same_xml_and_state_and_exact_replay():

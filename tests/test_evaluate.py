@@ -47,6 +47,8 @@ def _episode(agent, food, success, spilled, time_s, episode=0):
         physics_error="",
         grains_in_spoon=3,
         spill_fraction=0.0,
+        stage="held" if success else "reached pile",
+        peak_grains_in_spoon=3,
         wall_s=1.0,
     )
 
@@ -79,13 +81,13 @@ def test_summary_and_tables_match_a_hand_computed_case(tmp_path):
     # Table II: success %, group averages weigh each food the same, a food without an entry is left out
     for line in (
         "| **seen (training)** | | |",
-        "| rice | 67 | 100 |",
-        "| pasta | 0 | - |",
-        "| *seen (training) average* | 33 | 100 |",
+        "| rice | 67 (21-94) | 100 (21-100) |",
+        "| pasta | 0 (0-79) | - |",
+        "| *seen (training) average* | 33 (15-85) | 100 (21-100) |",  # interval of the group total, 2 in 4
         "| **unseen** | | |",
-        "| peas | 100 | - |",
-        "| *unseen average* | 100 | - |",
-        "| *overall average* | 56 | 100 |",
+        "| peas | 100 (34-100) | - |",
+        "| *unseen average* | 100 (34-100) | - |",
+        "| *overall average* | 56 (30-90) | 100 (21-100) |",  # rates averaged per food; 4 successes in 6
     ):
         assert line in lines, line
     # Table III: spilled pieces mean +- std, time over successes ("-" when none)
@@ -97,13 +99,21 @@ def test_summary_and_tables_match_a_hand_computed_case(tmp_path):
         "| *overall average* | 2.0 | 11.0 | 3.0 | 9.0 |",  # spilled (4 + 1 + 1) / 3; time (12 + 10) / 2,
     ):
         assert line in lines, line
-    assert lines.index("| rice | 67 | 100 |") < lines.index("| **unseen** | | |") < lines.index("| peas | 100 | - |")
+    rice_line, peas_line = "| rice | 67 (21-94) | 100 (21-100) |", "| peas | 100 (34-100) | - |"
+    assert lines.index(rice_line) < lines.index("| **unseen** | | |") < lines.index(peas_line)
+    # where the episodes stopped: furthest stage per agent and food
+    stages = result.stages_markdown().splitlines()
+    assert "| A | rice | 3 | 0 | 1 | 0 | 0 | 0 | 2 |" in stages
+    assert "| A | peas (unseen) | 2 | 0 | 0 | 0 | 0 | 0 | 2 |" in stages
 
     paths = result.write(str(tmp_path))
-    assert set(paths) == {"episodes.csv", "results.json", "table.md", "table.csv", "success.png"}
+    expected = {"episodes.csv", "results.json", "table.md", "table.csv", "stages.md", "stages.csv", "success.png"}
+    assert set(paths) == expected
     with open(paths["table.csv"]) as f:
         rows = {r["food"]: r for r in csv.DictReader(f)}
     assert float(rows["rice"]["A success %"]) == pytest.approx(66.67, abs=0.01)
+    low, high = float(rows["rice"]["A success % ci95 low"]), float(rows["rice"]["A success % ci95 high"])
+    assert (low, high) == pytest.approx((20.77, 93.85), abs=0.01)
     assert float(rows["seen (training) average"]["A success %"]) == pytest.approx(33.33, abs=0.01)
     assert float(rows["overall average"]["A success %"]) == pytest.approx(55.56, abs=0.01)
     assert rows["pasta"]["A time s mean"] == "NaN" and rows["pasta"]["B success %"] == "NaN"
@@ -114,6 +124,10 @@ def test_summary_and_tables_match_a_hand_computed_case(tmp_path):
     assert len(episodes) == len(HAND_CASE) and episodes[2]["completion_time_s"] == "30.0"
     saved = json.loads(Path(paths["results.json"]).read_text())
     assert len(saved["episodes"]) == len(HAND_CASE) and saved["config"] == {"seed": 0}
+    assert episodes[2]["stage"] == "reached pile" and episodes[0]["stage"] == "held"
+    with open(paths["stages.csv"]) as f:
+        stage_rows = {(r["agent"], r["food"]): r for r in csv.DictReader(f)}
+    assert stage_rows[("A", "rice")]["held"] == "2" and stage_rows[("A", "rice")]["reached pile"] == "1"
     pasta = next(s for s in saved["summary"] if (s["agent"], s["food"]) == ("A", "pasta"))
     assert pasta["completion_time_s_mean"] is None and pasta["success_rate"] == 0.0
     assert Path(paths["table.md"]).read_text() == result.markdown()

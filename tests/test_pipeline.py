@@ -1,8 +1,11 @@
 """veragmil-quickstart and veragmil-study: settings, the shortened configs, and the main job end to end (tiny)."""
 
 import json
+import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import h5py
@@ -29,9 +32,13 @@ def _run(command, *args, timeout=600, cwd=None):
 def test_training_config_shortens_our_config_and_changes_nothing_else(algo, tmp_path):
     with open(config_path(algo)) as f:
         stock = json.load(f)
-    config = training_config(algo, tmp_path / "d.hdf5", tmp_path / "runs", "x", epochs=7, steps_per_epoch=11)
+    config = training_config(
+        algo, tmp_path / "d.hdf5", tmp_path / "runs", "x", epochs=7, steps_per_epoch=11, filter_key="first3",
+        save_epochs=[2, 7],
+    )  # fmt: skip
     assert config["train"]["num_epochs"] == 7 and config["experiment"]["epoch_every_n_steps"] == 11
-    assert config["train"]["data"] == str(tmp_path / "d.hdf5")
+    assert config["train"]["data"] == str(tmp_path / "d.hdf5") and config["train"]["hdf5_filter_key"] == "first3"
+    assert config["experiment"]["save"]["epochs"] == [2]
     assert config["experiment"]["rollout"]["enabled"] is False
     assert config["experiment"]["save"]["every_n_epochs"] == 7  # the last epoch is the checkpoint evaluated
     assert config["algo"] == stock["algo"] and config["observation"] == stock["observation"]
@@ -45,6 +52,12 @@ def test_bad_settings_name_the_accepted_values(tmp_path):
         PipelineSettings(output_dir=str(tmp_path), algos=["diffusion"])
     with pytest.raises(ValueError, match="episodes must be a positive integer"):
         PipelineSettings(output_dir=str(tmp_path), episodes=0)
+    with pytest.raises(
+        ValueError, match=r"eval_steps \[150\] .* multiples of steps_per_epoch \(100\) up to .* \(2000\)"
+    ):
+        PipelineSettings(output_dir=str(tmp_path), eval_steps=[150, 200])
+    with pytest.raises(ValueError, match="demos_per_food must be positive"):
+        PipelineSettings(output_dir=str(tmp_path), demos_per_food=[0, 3])
     result = _run("veragmil-study", "--output-dir", tmp_path / "s", "--algos", "gail", timeout=60)
     assert result.returncode == 2 and "invalid choice: 'gail'" in result.stderr
     result = _run("veragmil-quickstart", "--output-dir", tmp_path / "q", "--episodes", "0", timeout=60)
@@ -62,7 +75,7 @@ def test_quickstart_end_to_end_records_trains_evaluates_and_prints_the_tables(tm
     with h5py.File(out / "data" / "expert.hdf5") as f:
         assert len(f["data"]) == 1
         assert json.loads(f["data"].attrs["env_args"])["env_kwargs"]["food"] == "pasta"
-    (checkpoint,) = (out / "runs").glob("expert_bc/*/models/model_epoch_2.pth")
+    (checkpoint,) = (out / "runs").glob("expert_bc_1demos_10steps/*/models/model_epoch_2.pth")
     summary = json.loads((out / "eval" / "results.json").read_text())
     agents = {e["agent"] for e in summary["episodes"]}
     assert agents == {"expert BC", "expert operator"}
@@ -70,7 +83,74 @@ def test_quickstart_end_to_end_records_trains_evaluates_and_prints_the_tables(tm
     for name in ("table.md", "table.csv", "episodes.csv", "success.png"):
         assert (out / "eval" / name).stat().st_size > 0
     assert "expert BC" in result.stdout and "peas" in result.stdout and "pasta" in result.stdout
-    # nothing recorded is overwritten by a second run into the same folder
-    again = _run("veragmil-quickstart", *args)
-    assert again.returncode == 1 and "exists" in again.stderr
-    assert checkpoint.exists()
+    stages = (out / "eval" / "stages.md").read_text()
+    assert "| expert operator | pasta | 1 | 0 | 0 | 0 | 0 | 0 | 1 |" in stages  # the expert held its scoop
+
+
+CHEAP_STUDY = ["--profiles", "expert", "--algos", "bc", "--train-foods", "pasta", "--eval-foods", "pasta", "peas"]
+CHEAP_STUDY += ["--n-grains", "12", "--epochs", "2", "--steps-per-epoch", "5", "--horizon", "250"]
+
+
+def test_a_killed_study_resumes_and_skips_every_finished_piece(tmp_path):
+    out = tmp_path / "study"
+    args = [*CHEAP_STUDY, "--output-dir", out, "--demos-per-food", "1", "2", "--eval-steps", "5", "10"]
+    args += ["--episodes", "2"]
+    env = dict(os.environ, MUJOCO_GL="osmesa")
+    first = subprocess.Popen(
+        [str(BIN / "veragmil-study"), *map(str, args)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        stdin=subprocess.DEVNULL,
+        env=env,
+        start_new_session=True,
+    )
+    journal = out / "eval" / "episodes.jsonl"
+    deadline = time.monotonic() + 500
+    while time.monotonic() < deadline and first.poll() is None:
+        if journal.exists() and len(journal.read_text().splitlines()) >= 3:
+            break
+        time.sleep(0.2)
+    assert first.poll() is None, "the study ended before it could be killed mid-evaluation"
+    os.killpg(first.pid, signal.SIGKILL)  # the study and its evaluation workers, mid-evaluation
+    first.wait()
+    journaled = len([line for line in journal.read_text().splitlines() if line.endswith("}")])
+    assert journaled >= 3
+    checkpoints = sorted((out / "runs").glob("expert_bc_*/*/models/*.pth"))
+    assert len(checkpoints) == 4  # 2 demo counts x checkpoints at 5 and 10 steps
+
+    again = _run("veragmil-study", *args)
+    assert again.returncode == 0, again.stdout[-3000:] + again.stderr[-3000:]
+    said = again.stdout
+    assert "skipping recording expert pasta" in said
+    assert "skipping training expert_bc_1demos_10steps" in said and "skipping training expert_bc_2demos_10steps" in said
+    assert f"skipping {journaled} evaluation episodes" in said
+    assert sorted((out / "runs").glob("expert_bc_*/*/models/*.pth")) == checkpoints  # not trained again
+    results = json.loads((out / "eval" / "results.json").read_text())
+    agents = {e["agent"] for e in results["episodes"]}
+    assert agents == {
+        "expert operator",
+        "expert BC 1 demos 5 steps",
+        "expert BC 1 demos 10 steps",
+        "expert BC 2 demos 5 steps",
+        "expert BC 2 demos 10 steps",
+    }
+    # every (agent, food, episode) exactly once: 5 agents x 2 foods x 2 episodes
+    keys = [(e["agent"], e["food"], e["episode"]) for e in results["episodes"]]
+    assert len(keys) == len(set(keys)) == 20
+    # the smaller dataset is the first demo of each food of the larger one
+    with h5py.File(out / "data" / "expert.hdf5") as f:
+        assert [n.decode() for n in f["mask/first1"][:]] == ["demo_0"]
+        assert sorted(n.decode() for n in f["mask/first2"][:]) == ["demo_0", "demo_1"]
+
+    # a third run finds everything done
+    third = _run("veragmil-study", *args)
+    assert third.returncode == 0 and "skipping 20 evaluation episodes" in third.stdout and "; 0 to run" in third.stdout
+
+
+def test_a_study_refuses_to_mix_settings_in_one_folder(tmp_path):
+    out = tmp_path / "study"
+    (out / "runs").mkdir(parents=True)
+    args = [*CHEAP_STUDY, "--output-dir", out, "--demos-per-food", "1", "--episodes", "1"]
+    (out / "runs" / "expert_bc_1demos_10steps.json").write_text(json.dumps({"another": "config"}))
+    result = _run("veragmil-study", *args)
+    assert result.returncode == 1 and "holds another config for expert_bc_1demos_10steps" in result.stderr

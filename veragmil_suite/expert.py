@@ -195,8 +195,6 @@ class ScriptedScooper:
         # OSC re-anchors the goal at the achieved pose every step, so the spoon settles at the speed where the
         # stiffness pull kp * offset equals the damping kd * speed: an offset of speed * kd / kp gives that speed
         self.speed_to_offset = np.asarray(self.controller.kd, dtype=float) / np.asarray(self.controller.kp, dtype=float)
-        # the size of the food's pieces, as an operator sees it: how far a scoop may push them
-        self.piece_radius = float(np.max(env.grain_pile.radii))
         self.reset()
 
     # -------------------------------------------------------------------------------------------------------- #
@@ -205,6 +203,9 @@ class ScriptedScooper:
         """Start a new episode: first phase, fresh noise, a new random plan (drawn from ``seed`` when given)."""
         if seed is not None:
             self.rng = np.random.default_rng(seed)
+        # the size of the food's pieces, as an operator sees it: how far a scoop may push them (read per episode:
+        # a reset may draw another pile variant)
+        self.piece_radius = float(np.max(self.env.grain_pile.radii))
         self.phase_index = 0
         self.phase_steps = 0
         self.hold_steps = 0
