@@ -1,5 +1,6 @@
 """veragmil-quickstart and veragmil-study: settings, the shortened configs, and the main job end to end (tiny)."""
 
+import csv
 import json
 import os
 import signal
@@ -137,14 +138,24 @@ def test_a_killed_study_resumes_and_skips_every_finished_piece(tmp_path):
     # every (agent, food, episode) exactly once: 5 agents x 2 foods x 2 episodes
     keys = [(e["agent"], e["food"], e["episode"]) for e in results["episodes"]]
     assert len(keys) == len(set(keys)) == 20
+    with open(out / "eval" / "curves.csv") as f:
+        curves = list(csv.DictReader(f))
+    assert [(int(r["demos_per_food"]), int(r["steps"])) for r in curves] == [(1, 5), (1, 10), (2, 5), (2, 10)]
+    assert all(
+        0 <= float(r["seen ci95 low"]) <= float(r["seen success %"]) <= float(r["seen ci95 high"]) for r in curves
+    )
+    assert (out / "eval" / "curves.png").read_bytes()[:4] == b"\x89PNG"
     # the smaller dataset is the first demo of each food of the larger one
     with h5py.File(out / "data" / "expert.hdf5") as f:
         assert [n.decode() for n in f["mask/first1"][:]] == ["demo_0"]
         assert sorted(n.decode() for n in f["mask/first2"][:]) == ["demo_0", "demo_1"]
 
-    # a third run finds everything done
+    # a third run finds everything done; asking for the last checkpoints only reuses the same runs
     third = _run("veragmil-study", *args)
     assert third.returncode == 0 and "skipping 20 evaluation episodes" in third.stdout and "; 0 to run" in third.stdout
+    last_only = _run("veragmil-study", *args[: args.index("--eval-steps")], "--episodes", "2")
+    assert last_only.returncode == 0 and "skipping training expert_bc_2demos_10steps" in last_only.stdout
+    assert "skipping 12 evaluation episodes" in last_only.stdout  # operator and the two last checkpoints
 
 
 def test_a_study_refuses_to_mix_settings_in_one_folder(tmp_path):

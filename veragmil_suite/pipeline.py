@@ -28,6 +28,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from veragmil_suite.asset_paths import config_path
 from veragmil_suite.foods import FOODS, TRAINING_FOODS, UNSEEN_FOODS, get_food
 
@@ -316,10 +318,17 @@ def _checkpoints(config: dict) -> dict[int, Path]:
     return {int(p.stem.split("_")[-1]): p for p in runs[-1].glob("model_epoch_*.pth")}
 
 
+def _without_save_epochs(config: dict) -> dict:
+    """The config less its extra checkpoint epochs, which change what is saved, not what is trained."""
+    out = json.loads(json.dumps(config))
+    out["experiment"]["save"].pop("epochs", None)
+    return out
+
+
 def train_checkpoint(config: dict, work_dir: Path, say=print) -> tuple[dict[int, Path], float | None]:
     """
-    Trains with veragmil-train unless a finished run of the same config is there; returns the checkpoints by
-    epoch and the wall time (None when skipped).
+    Trains with veragmil-train unless a finished run of the same config holding every checkpoint asked for is
+    there; returns the checkpoints by epoch and the wall time (None when skipped).
 
     Raises:
         StageError: [training failed or wrote no last checkpoint, or the run's folder holds another config]
@@ -328,20 +337,26 @@ def train_checkpoint(config: dict, work_dir: Path, say=print) -> tuple[dict[int,
     name = config["experiment"]["name"]
     config_file = work_dir / f"{name}.json"
     epochs = int(config["train"]["num_epochs"])
+    wanted = {epochs, *config["experiment"]["save"].get("epochs", [])}
     if config_file.exists():
-        if json.loads(config_file.read_text()) != config:
+        held = json.loads(config_file.read_text())
+        if _without_save_epochs(held) != _without_save_epochs(config):
             raise StageError(f"{config_file} holds another config for {name}; use another output directory")
         found = _checkpoints(config)
-        if epochs in found:
-            say(f"skipping training {name}: its last checkpoint is there ({found[epochs]})")
+        if wanted <= set(found):
+            say(f"skipping training {name}: its checkpoints are there ({found[epochs].parent})")
             return found, None
-        shutil.rmtree(Path(config["train"]["output_dir"]) / name, ignore_errors=True)  # killed: train again
+        # killed, or saved at other epochs: train again, saving both
+        saved = set(held["experiment"]["save"].get("epochs", [])) | set(config["experiment"]["save"]["epochs"])
+        config = json.loads(json.dumps(config))
+        config["experiment"]["save"]["epochs"] = sorted(saved - {epochs})
+        shutil.rmtree(Path(config["train"]["output_dir"]) / name, ignore_errors=True)
     config_file.write_text(json.dumps(config, indent=4))
     seconds = _run_logged(
         [*_console("veragmil-train"), "--config", str(config_file)], work_dir / f"{name}.log", f"training {name}"
     )
     found = _checkpoints(config)
-    if epochs not in found:
+    if not wanted <= set(found):
         raise StageError(f"training {name} wrote no last checkpoint under {config['train']['output_dir']}/{name}")
     return found, seconds
 
@@ -380,6 +395,7 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True):
             timings[key] = round(seconds, 1)
             timings_file.write_text(json.dumps(timings, indent=2))
 
+    points: list[dict] = []
     sweep_demos = len(settings.demos_per_food) > 1
     sweep_steps = len(settings.eval_steps) > 1
     for profile in settings.profiles:
@@ -424,6 +440,7 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True):
                     label += f" {n} demos" if sweep_demos else ""
                     label += f" {_steps_label(k)} steps" if sweep_steps else ""
                     agents[label] = str(checkpoints[k // settings.steps_per_epoch])
+                    points.append(dict(agent=label, profile=profile, algo=algo, demos_per_food=n, steps=k))
 
     say(f"evaluating {len(agents)} agents x {settings.episodes} episodes on {settings.eval_foods}")
     env_kwargs = {"n_grains": settings.n_grains} if settings.n_grains is not None else None
@@ -443,4 +460,76 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True):
         **kwargs,
     )
     note("evaluate", time.perf_counter() - start)
+    if sweep_demos or sweep_steps:
+        write_learning_curves(result, points, out / "eval")
     return result
+
+
+def learning_curves(result, points: list[dict]) -> list[dict]:
+    """Success on seen and unseen foods (each food weighing the same, 95% Wilson intervals of the group's totals)
+    per checkpoint of a sweep: ``points`` name each checkpoint agent's profile, algo, demos per food and steps."""
+    from veragmil_suite.evaluation import SEEN_LABEL, UNSEEN_LABEL, table_rows, wilson_interval
+
+    rows = table_rows(result.summary, result.agents, result.foods)["table2"]
+    averages = {r["group"]: r for r in rows if r["food"].endswith(" average") and r["group"] != "all"}
+    out = []
+    for point in points:
+        row = dict(point)
+        for label, key in ((SEEN_LABEL, "seen"), (UNSEEN_LABEL, "unseen")):
+            group = averages.get(label)
+            if group is None:
+                continue
+            a = point["agent"]
+            low, high = wilson_interval(group[f"{a} successes"], group[f"{a} episodes"])
+            row.update({f"{key} success %": group[a], f"{key} ci95 low": 100 * low, f"{key} ci95 high": 100 * high})
+        out.append(row)
+    return out
+
+
+def write_learning_curves(result, points: list[dict], out_dir: Path) -> None:
+    """curves.csv and curves.png: success against gradient steps (one line per demo count) and against demos
+    per food (one line per step count), seen and unseen foods."""
+    import csv
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = learning_curves(result, points)
+    columns = list(dict.fromkeys(k for r in rows for k in r))
+    with open(out_dir / "curves.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=columns)
+        writer.writeheader()
+        writer.writerows(rows)
+    axes_of = [("steps", "gradient steps", "demos_per_food", "demos/food"), ("demos_per_food", "demos per food",
+               "steps", "steps")]  # fmt: skip
+    axes_of = [a for a in axes_of if len({r[a[0]] for r in rows}) > 1]
+    fig, axes = plt.subplots(1, len(axes_of), figsize=(5.5 * len(axes_of), 3.8), squeeze=False)
+    for ax, (x_key, x_label, line_key, line_label) in zip(axes[0], axes_of):
+        for (profile, algo, line), group in _groups_by(rows, ("profile", "algo", line_key)).items():
+            group = sorted(group, key=lambda r: r[x_key])
+            x = [r[x_key] for r in group]
+            for key, style in (("seen", "-o"), ("unseen", "--s")):
+                if f"{key} success %" not in group[0]:
+                    continue
+                y = np.array([r[f"{key} success %"] for r in group])
+                err = np.array([[y_ - r[f"{key} ci95 low"], r[f"{key} ci95 high"] - y_] for y_, r in zip(y, group)]).T
+                name = f"{profile} {ALGO_LABELS[algo]}, {line} {line_label}, {key}"
+                ax.errorbar(x, y, yerr=err, fmt=style, capsize=3, label=name)
+        ax.set_xscale("log")
+        ax.set_xticks(sorted({r[x_key] for r in rows}), [str(v) for v in sorted({r[x_key] for r in rows})])
+        ax.set_xlabel(x_label)
+        ax.set_ylabel("success (%, 95% CI)")
+        ax.set_ylim(0, 100)
+        ax.legend(fontsize="x-small")
+    fig.tight_layout()
+    fig.savefig(out_dir / "curves.png", dpi=100)
+    plt.close(fig)
+
+
+def _groups_by(rows: list[dict], keys: tuple[str, ...]) -> dict[tuple, list[dict]]:
+    out: dict[tuple, list[dict]] = {}
+    for r in rows:
+        out.setdefault(tuple(r[k] for k in keys), []).append(r)
+    return out
