@@ -89,6 +89,22 @@ def test_parallel_recording_writes_the_same_demos_as_serial_recording(tmp_path):
         np.testing.assert_array_equal(a["data"][second]["states"][:], c["data/demo_0/states"][:])
 
 
+def test_noise_injection_records_the_operators_actions_and_replays_the_executed_ones(tmp_path):
+    out = tmp_path / "dart.hdf5"
+    result = _collect(out, "--episodes", "1", "--profile", "expert-dart", "--cameras")
+    assert result.returncode == 0, result.stderr[-2000:]
+    with open_dataset(out) as f:
+        g = f["data/demo_0"]
+        labels, executed = g["actions"][:], g["executed_actions"][:]
+        assert g.attrs["profile"] == "expert-dart" and g.attrs["success"]
+    assert labels.shape == executed.shape
+    gap = np.abs(executed - labels)
+    assert 0.01 < gap.mean() < 0.3  # noise of std 0.1 (clipped to the action range)
+    # the executed actions replay the recorded states exactly (on this machine); the labels alone would not
+    (replayed,) = dataset_tools.replay_demos(out, None, use_actions=True)
+    assert replayed["max_state_error"] == 0.0 and replayed["success"]
+
+
 def test_workers_need_the_scripted_device(tmp_path):
     result = subprocess.run(
         [str(BIN / "veragmil-collect"), "--device", "keyboard", "--workers", "2", "--output", str(tmp_path / "k.h5")],

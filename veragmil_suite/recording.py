@@ -188,6 +188,7 @@ class Episode:
     model_file: str
     metrics: dict
     attrs: dict = field(default_factory=dict)
+    executed_actions: np.ndarray | None = None  # when not the actions stored for learning (injected noise)
 
     @property
     def num_samples(self) -> int:
@@ -209,6 +210,7 @@ class EpisodeRecorder:
 
     def _clear(self):
         self._states, self._actions, self._rewards, self._successes = [], [], [], []
+        self._executed = []
         self._obs, self._next_obs = [], []
         self._info = {}
         self._stages = StageTracker()
@@ -226,8 +228,13 @@ class EpisodeRecorder:
         self._converted = robomimic_obs(self.env, raw)
         return raw
 
-    def step(self, action: np.ndarray):
-        """env.step(action), recorded. Returns (obs, reward, done, info), obs that of the state reached."""
+    def step(self, action: np.ndarray, label: np.ndarray | None = None):
+        """
+        env.step(action), recorded. Returns (obs, reward, done, info), obs that of the state reached.
+
+        ``label`` is the action stored for learning when it is not the one executed (injected noise): the
+        executed one is kept as well, in executed_actions, so the demo still replays.
+        """
         if self.obs is None:
             raise RuntimeError("EpisodeRecorder.reset() must come before step()")
         action = np.asarray(action, dtype=np.float64)
@@ -235,7 +242,8 @@ class EpisodeRecorder:
         raw, reward, done, info = self.env.step(action)
         after = robomimic_obs(self.env, raw)
         self._states.append(state)
-        self._actions.append(action.copy())
+        self._executed.append(action.copy())
+        self._actions.append(action.copy() if label is None else np.asarray(label, dtype=np.float64).copy())
         self._rewards.append(float(reward))
         self._successes.append(bool(info.get("success", False)))
         self._obs.append(self._converted)
@@ -255,8 +263,10 @@ class EpisodeRecorder:
             raise RuntimeError("no steps recorded")
         dones = np.array(self._successes, dtype=np.int64)
         dones[-1] = 1
+        actions, executed = np.stack(self._actions), np.stack(self._executed)
         return Episode(
-            actions=np.stack(self._actions),
+            actions=actions,
+            executed_actions=None if np.array_equal(actions, executed) else executed,
             states=np.stack(self._states),
             rewards=np.array(self._rewards, dtype=np.float64),
             dones=dones,
@@ -465,6 +475,8 @@ class DemoWriter:
                 del data[pending]
             g = data.create_group(pending)
             g.create_dataset("actions", data=episode.actions)
+            if episode.executed_actions is not None:
+                g.create_dataset("executed_actions", data=episode.executed_actions)
             g.create_dataset("states", data=episode.states, compression="gzip", compression_opts=4, shuffle=True)
             g.create_dataset("rewards", data=episode.rewards)
             g.create_dataset("dones", data=episode.dones)

@@ -157,15 +157,18 @@ class ScriptedOperator:
         self.expert = ScriptedScooper(env, profile, seed=seed)
         self.name = f"scripted-{self.expert.profile.name}"
         self.command = None
+        self.label = None
 
     def begin(self, seed: int | None = None) -> None:
         self.expert.reset(seed=seed)
         self.command = None
 
     def action(self, obs: dict) -> np.ndarray | None:
+        """The action to execute; ``label`` is the one to record (they differ under injected noise)."""
         if self.expert.done:
             return None
-        return self.expert.act(obs)
+        self.label = self.expert.act(obs)
+        return self.expert.executed(self.label)
 
     def close(self) -> None:
         pass
@@ -181,6 +184,7 @@ class TeleopOperator:
         self.device = device
         self.name = name
         self.command = None
+        self.label = None  # the action executed is the one recorded
 
     def begin(self, seed: int | None = None) -> None:
         self.command = None
@@ -268,7 +272,7 @@ def run_episode(
         action = operator.action(obs)
         if action is None:
             return "operator" if operator.source == "human" else "gave up"
-        obs, _, done, info = recorder.step(action)
+        obs, _, done, info = recorder.step(action, label=operator.label)
         if render:
             env.render()
         streak = streak + 1 if info.get("success") else 0

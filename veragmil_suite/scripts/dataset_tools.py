@@ -464,7 +464,9 @@ def replay_demos(
                     _check_camera(env, camera)
                     if writer is None:
                         writer = imageio.get_writer(str(video), fps=fps or env.control_freq / skip, macro_block_size=1)
-                states, actions = g["states"][()], g["actions"][()]
+                states = g["states"][()]
+                # what was executed: the operator's own actions under injected noise are the labels, not these
+                actions = g["executed_actions" if "executed_actions" in g else "actions"][()]
                 result = dict(demo=name, steps=len(actions))
                 errors = []
                 info = {}
@@ -585,13 +587,15 @@ def render_observations(
                     for cam in cameras:
                         _check_camera(env, cam)
                     out = data_out.create_group(name)
-                    for key in ("actions", "states", "rewards", "dones"):
-                        fin.copy(g[key], out, name=key)
+                    for key in ("actions", "executed_actions", "states", "rewards", "dones"):
+                        if key in g:
+                            fin.copy(g[key], out, name=key)
                     for key, value in g.attrs.items():
                         out.attrs[key] = value
                     if "env_args" in g.attrs:
                         out.attrs["env_args"] = _with_cameras(_text(g.attrs["env_args"]), overrides)
-                    images = _render_images(env, g["states"][()], g["actions"][()])
+                    executed = g["executed_actions" if "executed_actions" in g else "actions"][()]
+                    images = _render_images(env, g["states"][()], executed)
                     for group in ("obs", "next_obs"):
                         og = out.create_group(group)
                         for key, d in g[group].items():

@@ -39,16 +39,16 @@ def run_expert_episode(
     start = time.perf_counter()
     obs = recorder.reset()
     out = run_until_done(
-        lambda o: None if expert.done else expert.act(o),
+        lambda o: None if expert.done else expert.executed(expert.act(o)),
         recorder.step,
         obs,
         env.control_freq,
         env.horizon,
         success_hold_s=success_hold_s,
     )
-    info, reason, peak = out["info"], out["end_reason"], out["peak_grains_in_spoon"]
+    info, reason, peak, stage = out["info"], out["end_reason"], out["peak_grains_in_spoon"], out["stage"]
     env.close()
-    out = episode_metrics(info)
+    out = episode_metrics(info, stage)
     out.update(
         food=food,
         seed=seed,

@@ -1,0 +1,97 @@
+"""
+Copies a study's tables and records into results/ with how they were made: the command, the host, the package
+versions and the wall times. Datasets and checkpoints stay behind (the command regenerates them).
+
+    python scripts/publish_results.py runs/grid results/grid --command "veragmil-study --output-dir runs/grid ..."
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import shutil
+import sys
+from pathlib import Path
+
+# what a study's eval/ folder holds that results/ keeps
+EVAL_FILES = (
+    "table.md",
+    "table.csv",
+    "stages.md",
+    "stages.csv",
+    "results.json",
+    "episodes.csv",
+    "success.png",
+    "curves.csv",
+    "curves.png",
+)
+
+
+def host() -> dict:
+    """The CPU model, core count and OS of this machine."""
+    model = platform.processor() or "unknown"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                model = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return dict(cpu=model, cores=os.cpu_count(), os=platform.platform(), python=platform.python_version())
+
+
+def publish(study_dir: Path, dest: Path, command: str) -> list[str]:
+    """Copies the study's eval outputs and timings to ``dest`` and writes RUN.md; returns the files written."""
+    eval_dir = study_dir / "eval"
+    if not (eval_dir / "results.json").is_file():
+        raise SystemExit(f"publish_results: {eval_dir}/results.json not found: is {study_dir} a finished study?")
+    dest.mkdir(parents=True, exist_ok=True)
+    written = []
+    for name in EVAL_FILES:
+        if (eval_dir / name).is_file():
+            shutil.copy2(eval_dir / name, dest / name)
+            written.append(name)
+    timings = json.loads((study_dir / "timings.json").read_text()) if (study_dir / "timings.json").is_file() else {}
+    config = json.loads((eval_dir / "results.json").read_text())["config"]
+    lines = [
+        f"# {dest.name}",
+        "",
+        "Made with:",
+        "",
+        "```bash",
+        command,
+        "```",
+        "",
+        "Host: " + ", ".join(f"{k} {v}" for k, v in host().items()),
+        "",
+        "Versions: " + ", ".join(f"{k} {v}" for k, v in config.get("versions", {}).items()),
+        "",
+        "Evaluation: "
+        + ", ".join(f"{k} {config[k]}" for k in ("episodes", "seed", "horizon", "success_hold_s") if k in config),
+        "",
+        "Wall times (s, this machine, the pieces this folder's runs performed; skipped pieces keep their first time):",
+        "",
+        "| piece | seconds |",
+        "|---|---:|",
+        *(f"| {k} | {v} |" for k, v in timings.items()),
+        "",
+    ]
+    (dest / "RUN.md").write_text("\n".join(lines))
+    return [*written, "RUN.md"]
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[1].strip())
+    parser.add_argument("study_dir", type=Path, help="a veragmil-study --output-dir")
+    parser.add_argument("dest", type=Path, help="a folder under results/")
+    parser.add_argument("--command", required=True, help="the exact command that made the study")
+    args = parser.parse_args(argv)
+    for name in publish(args.study_dir, args.dest, args.command):
+        print(args.dest / name)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
