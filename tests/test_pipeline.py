@@ -13,7 +13,7 @@ import h5py
 import pytest
 
 from veragmil_suite.asset_paths import config_path
-from veragmil_suite.pipeline import PipelineSettings, training_config
+from veragmil_suite.pipeline import PipelineSettings, StageError, record_food, training_config
 
 BIN = Path(sys.executable).parent
 
@@ -165,3 +165,19 @@ def test_a_study_refuses_to_mix_settings_in_one_folder(tmp_path):
     (out / "runs" / "expert_bc_1demos_10steps.json").write_text(json.dumps({"another": "config"}))
     result = _run("veragmil-study", *args)
     assert result.returncode == 1 and "holds another config for expert_bc_1demos_10steps" in result.stderr
+
+
+def test_a_shorter_recording_is_continued_to_the_demos_one_run_records(tmp_path):
+    whole, grown = tmp_path / "whole.hdf5", tmp_path / "grown.hdf5"
+    kwargs = dict(food="pasta", profile="expert", seed=5, n_grains=12, horizon=250)
+    assert record_food(whole, demos=3, **kwargs) > 0
+    assert record_food(grown, demos=1, **kwargs) > 0
+    assert record_food(grown, demos=3, **kwargs) > 0  # continued from the seed after its last attempt
+    assert record_food(grown, demos=3, **kwargs) is None  # complete: skipped
+    with h5py.File(whole) as a, h5py.File(grown) as b:
+        assert sorted(a["data"].keys()) == sorted(b["data"].keys())
+        for name in a["data"]:
+            assert a["data"][name].attrs["seed"] == b["data"][name].attrs["seed"]
+            assert (a["data"][name]["states"][:] == b["data"][name]["states"][:]).all()
+    with pytest.raises(StageError, match="recorded with other settings: n_grains 12 \\(asked: 10\\)"):
+        record_food(grown, demos=4, **dict(kwargs, n_grains=10))

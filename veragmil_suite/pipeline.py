@@ -151,7 +151,10 @@ def _recorded(path: Path) -> dict:
         kwargs = json.loads(f["data"].attrs["env_args"])["env_kwargs"]
         names = demo_names(f)
         first = f["data"][names[0]].attrs if names else {}
+        tried = [a["seed"] for a in json.loads(f["data"].attrs.get("attempts", "[]")) if "seed" in a]
+        tried += [int(f["data"][n].attrs["seed"]) for n in names if "seed" in f["data"][n].attrs]
         return dict(
+            next_seed=max(tried) + 1 if tried else None,
             demos=len(names),
             food=kwargs.get("food"),
             n_grains=kwargs.get("n_grains"),
@@ -175,7 +178,9 @@ def record_food(
 ) -> float | None:
     """
     Records ``demos`` successful scripted demos of ``food`` into ``path`` (attempt seeds from ``seed``); returns
-    the seconds taken, or None when the file already holds them (recorded with the same settings).
+    the seconds taken, or None when the file already holds them (recorded with the same settings). A file with
+    fewer (a killed or smaller recording) is continued from the seed after its last attempt: the demos are those
+    one uninterrupted recording would have kept.
 
     Raises:
         StageError: [the file was recorded with other settings, or recording failed]
@@ -190,7 +195,10 @@ def record_food(
             raise StageError(f"{path} was recorded with other settings: {described}; use another output directory")
         if held["demos"] >= demos:
             return None
-        path.unlink()  # a killed recording: its attempts are seeded, so recording again gives the same demos
+        if held["next_seed"] is None:
+            path.unlink()  # killed before its first attempt ended: nothing to continue
+        else:
+            demos, seed = demos - held["demos"], held["next_seed"]
     path.parent.mkdir(parents=True, exist_ok=True)
     command = [
         *_console("veragmil-collect"),
@@ -200,7 +208,8 @@ def record_food(
     ]
     if n_grains is not None:
         command += ["--n-grains", str(n_grains)]
-    return _run_logged(command, path.with_suffix(".log"), f"recording {food} ({profile})")
+    log = path.with_name(f"{path.stem}.seed{seed}.log")
+    return _run_logged(command, log, f"recording {food} ({profile})")
 
 
 def demo_mask(n: int) -> str:
