@@ -19,19 +19,13 @@ setup(
     description="robosuite task plugin for scooping and carrying granular food with a spoon (VERAGMIL on MuJoCo)",
     python_requires=">=3.10",
     packages=find_packages(include=["veragmil_suite", "veragmil_suite.*"])
-    + ["veragmil_suite.assets", "veragmil_suite.configs", "veragmil_suite.checkpoints"],
-    # models/assets, models/checkpoints and configs/json stay at the repository's top level and are installed as
-    # the package data of veragmil_suite.assets, .checkpoints and .configs, so a non-editable install finds them
-    # from any directory.
-    package_dir={
-        "veragmil_suite.assets": "models/assets",
-        "veragmil_suite.configs": "configs/json",
-        "veragmil_suite.checkpoints": "models/checkpoints",
-    },
+    + ["veragmil_suite.assets", "veragmil_suite.configs"],
+    # models/assets and configs/json stay at the repository's top level and are installed as the package data
+    # of veragmil_suite.assets and veragmil_suite.configs, so a non-editable install finds them from any directory.
+    package_dir={"veragmil_suite.assets": "models/assets", "veragmil_suite.configs": "configs/json"},
     package_data={
         "veragmil_suite.assets": ["**/*"],
         "veragmil_suite.configs": ["*.json"],
-        "veragmil_suite.checkpoints": ["*.pth", "*.md"],
         "veragmil_suite": ["devices/web/**/*"],
     },
     include_package_data=True,

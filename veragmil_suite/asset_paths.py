@@ -1,5 +1,4 @@
-"""Where the package's data is (MuJoCo assets, robomimic configs, pretrained checkpoints), installed or in a source
-checkout."""
+"""Where the package's data is (MuJoCo assets, robomimic configs), installed or in a source checkout."""
 
 from __future__ import annotations
 
@@ -34,21 +33,4 @@ def config_path(name: str) -> str:
     if not path.exists():
         accepted = sorted(p.stem for p in configs_root().glob("*.json"))
         raise FileNotFoundError(f"no robomimic config {name!r} under {configs_root()}; accepted: {accepted}")
-    return str(path)
-
-
-def checkpoints_root() -> Path:
-    """``veragmil_suite/checkpoints`` when installed from a wheel, else the checkout's ``models/checkpoints``."""
-    package = Path(__file__).resolve().parent
-    installed = package / "checkpoints"
-    return installed if installed.is_dir() else package.parent / "models" / "checkpoints"
-
-
-def checkpoint_path(name: str) -> str:
-    """Absolute path of a robomimic checkpoint shipped with the package (models/checkpoints/README.md says how each
-    was made), e.g. ``checkpoint_path("bc_expert_30demos")``."""
-    path = checkpoints_root() / f"{name}.pth"
-    if not path.exists():
-        accepted = sorted(p.stem for p in checkpoints_root().glob("*.pth"))
-        raise FileNotFoundError(f"no shipped checkpoint {name!r} under {checkpoints_root()}; accepted: {accepted}")
     return str(path)

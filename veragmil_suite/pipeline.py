@@ -55,7 +55,6 @@ class PipelineSettings:
     ``demos_per_food`` and ``eval_steps`` may list several values (learning curves): each demo count trains its
     own model on the first N demos of each food, and each model is evaluated at every step count of
     ``eval_steps`` (gradient steps, multiples of ``steps_per_epoch``; by default only at the end of training).
-    ``extra_agents`` (name -> agent SPEC of veragmil_suite.evaluation) are evaluated beside them.
     """
 
     output_dir: str
@@ -73,7 +72,6 @@ class PipelineSettings:
     horizon: int = 400
     n_grains: int | None = None
     score_demonstrators: bool = True
-    extra_agents: dict[str, str] = field(default_factory=dict)
 
     def __post_init__(self):
         for food in [*self.train_foods, *self.eval_foods]:
@@ -453,7 +451,6 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True):
                     agents[label] = str(checkpoints[k // settings.steps_per_epoch])
                     points.append(dict(agent=label, profile=profile, algo=algo, demos_per_food=n, steps=k))
 
-    agents.update(settings.extra_agents)
     say(f"evaluating {len(agents)} agents x {settings.episodes} episodes on {settings.eval_foods}")
     env_kwargs = {"n_grains": settings.n_grains} if settings.n_grains is not None else None
     start = time.perf_counter()

@@ -82,15 +82,11 @@ def settings_from_args(args: argparse.Namespace) -> PipelineSettings:
     )
 
 
-def run(parser: argparse.ArgumentParser, argv: list[str] | None, extra_agents=None) -> int:
-    """Parses, runs the pipeline and prints the tables; bad values exit 2 with the accepted ones named.
-
-    ``extra_agents(args)``, when given, returns agents (name -> SPEC) evaluated beside the pipeline's own."""
+def run(parser: argparse.ArgumentParser, argv: list[str] | None) -> int:
+    """Parses, runs the pipeline and prints the tables; bad values exit 2 with the accepted ones named."""
     args = parser.parse_args(argv)
     try:
         settings = settings_from_args(args)
-        if extra_agents is not None:
-            settings.extra_agents = extra_agents(args)
     except ValueError as error:
         parser.error(str(error))
     try:
