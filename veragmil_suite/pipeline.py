@@ -527,6 +527,7 @@ def write_learning_curves(result, points: list[dict], out_dir: Path) -> None:
                 name = f"{profile} {ALGO_LABELS[algo]}, {line} {line_label}, {key}"
                 ax.errorbar(x, y, yerr=err, fmt=style, capsize=3, label=name)
         ax.set_xscale("log")
+        ax.minorticks_off()
         ax.set_xticks(sorted({r[x_key] for r in rows}), [str(v) for v in sorted({r[x_key] for r in rows})])
         ax.set_xlabel(x_label)
         ax.set_ylabel("success (%, 95% CI)")
