@@ -124,7 +124,7 @@ def test_ctrl_c_mid_episode_keeps_the_saved_episodes(tmp_path):
         "scripted",
         *LIGHT,
         "--episodes",
-        "20",
+        "1000",  # never all recorded before the interrupt lands, however late the reader sees demo_0
         "--keep",
         "all",
         "--horizon",
@@ -139,6 +139,9 @@ def test_ctrl_c_mid_episode_keeps_the_saved_episodes(tmp_path):
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        # Ctrl-C as in a terminal, even when the tests run in the background (which ignores SIGINT, and a child
+        # started with it ignored keeps ignoring it)
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     try:
         for line in child.stdout:

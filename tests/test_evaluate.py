@@ -217,7 +217,8 @@ def test_checkpoint_agent_rolls_out_on_the_evaluated_food(tmp_path):
     dataset = record_tiny_dataset(str(tmp_path / "tiny.hdf5"), episodes=2, steps=20, valid_episodes=1)
     config = training_config("bc", Path(dataset), tmp_path / "runs", "tiny_bc", epochs=1, steps_per_epoch=3)
     config["train"]["batch_size"] = 16
-    checkpoint, _ = train_checkpoint(config, tmp_path)
+    checkpoints, _ = train_checkpoint(config, tmp_path)
+    checkpoint = checkpoints[1]  # the last epoch's
     horizon = 15
     result = evaluate(
         {"BC": str(checkpoint), "expert": "expert"},
@@ -233,4 +234,5 @@ def test_checkpoint_agent_rolls_out_on_the_evaluated_food(tmp_path):
     assert bc["food"] == "peas" and bc["seed"] == 7
     assert bc["steps"] == horizon and bc["end_reason"] == "horizon" and not bc["success"]
     assert {e["seed"] for e in result.episodes} == {7}
-    assert "| peas | 0 |" in result.markdown()
+    assert "| peas | 0 (0-79) |" in result.markdown()  # one episode: a wide interval
+    assert bc["stage"] == "start"  # 15 steps from the pre-scoop pose do not reach the pile

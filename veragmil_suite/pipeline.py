@@ -330,7 +330,8 @@ def _checkpoints(config: dict) -> dict[int, Path]:
 def _without_save_epochs(config: dict) -> dict:
     """The config less its extra checkpoint epochs, which change what is saved, not what is trained."""
     out = json.loads(json.dumps(config))
-    out["experiment"]["save"].pop("epochs", None)
+    if isinstance(out, dict):
+        out.get("experiment", {}).get("save", {}).pop("epochs", None)
     return out
 
 
