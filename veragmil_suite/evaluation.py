@@ -760,6 +760,7 @@ def evaluate(
         if reused and say is not None:
             say(f"skipping {len(reused)} evaluation episodes journaled in {journal.path}; {len(tasks)} to run")
         records += reused
+    episodes_run = len(tasks)
     if tasks:
         records += _run_parallel(tasks, int(processes), progress, journal)
     order = {name: i for i, name in enumerate(specs)}
@@ -775,6 +776,7 @@ def evaluate(
         video_camera=video_camera,
         env_kwargs=dict(env_kwargs or {}),
         success_hold_s=SUCCESS_HOLD_S,
+        episodes_run=episodes_run,
         versions=_versions(),
     )
     result = EvaluationResult(records, list(specs), foods, config)

@@ -469,7 +469,8 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True):
         say=say,
         **kwargs,
     )
-    note("evaluate", time.perf_counter() - start)
+    if result.config["episodes_run"]:  # a fully journaled evaluation keeps the time of the run that did it
+        note("evaluate", time.perf_counter() - start)
     if sweep_demos or sweep_steps:
         write_learning_curves(result, points, out / "eval")
     return result
