@@ -1,6 +1,8 @@
 """
-Measure the scripted expert: success, spillage and completion time per food, over seeded episodes run exactly as
+Measure the scripted expert: success, spillage and completion time per food, over seeded episodes run as
 veragmil-collect records them (restart from reset_to, observations of the recorded states), nothing written.
+Episode s is a fresh environment made with seed s, so its bowl is not that of veragmil-collect's attempt of seed s
+(an environment reset with that seed).
 
     python -m veragmil_suite.scripts.measure_expert --foods rice buckwheat barley pasta --episodes 10 --workers 2
 """
