@@ -316,10 +316,8 @@ def _init_worker(args: argparse.Namespace, env_kwargs: dict) -> None:
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     env = robosuite.make("ScoopGranular", **env_kwargs, has_renderer=False, seed=args.seed)
-    _WORKER.update(
-        env=env, recorder=recording.EpisodeRecorder(env), operator=ScriptedOperator(env, args.profile, args.seed)
-    )
-    _WORKER["args"] = args
+    operator = ScriptedOperator(env, args.profile, args.seed)
+    _WORKER.update(env=env, recorder=recording.EpisodeRecorder(env), operator=operator, args=args)
 
 
 def _worker_attempt(seed: int):
