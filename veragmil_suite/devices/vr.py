@@ -272,6 +272,8 @@ class VRDevice(Device):
         for event in events:
             self._apply_event(event, head_q)
         self.pose_age = None if recv_time is None else now - recv_time
+        # the socket's own state, read now: the disconnect callback reaches this thread a moment after the close
+        connected = connected and self.server.connected
         fresh = connected and visible and self.pose_age is not None and self.pose_age <= self.stale_timeout
         self._stale = not fresh
         if fresh:
