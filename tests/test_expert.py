@@ -71,15 +71,13 @@ def test_bad_profile_and_controller_are_named():
     ik.close()
 
 
-def test_spacemouse_profile_scoops_a_seen_food_more_slowly_than_the_expert():
+def test_spacemouse_profile_scoops_a_seen_food():
     """One axis at a time still gets a portion to the post-scoop pose: turns in the pile stop for drift
     corrections, and the hand comes off the input at the pose (coarse nudges there would never hold still)."""
     mouse = run_expert_episode("buckwheat", 0, "spacemouse")
-    expert = run_expert_episode("buckwheat", 0, "expert")
     assert mouse["success"], mouse
     assert mouse["end_reason"] == "success"
     assert mouse["spill_fraction"] < 0.05
-    assert mouse["completion_time_s"] > expert["completion_time_s"]
 
 
 def test_one_axis_drift_correction_interrupts_a_turn_and_gives_it_back():

@@ -4,10 +4,31 @@ from __future__ import annotations
 
 import copy
 
+import numpy as np
 from robosuite.controllers import load_composite_controller_config, load_part_controller_config
 from robosuite.controllers.parts.arm.ik import SUPPORTED_IK_ROBOTS
 
 ARM_CONTROLLERS = ("OSC_POSE", "IK_POSE")
+
+# OSC_POSE stiffness. XArm7's joints have 1 N m of dry friction (frictionloss): at robosuite's kp=150 the pull of a
+# small pose error does not overcome it, and the spoon stops 1-8 mm short of a held target (0.07 mm with the
+# friction removed). kp=2000 holds every direction within 0.7 mm (scripts/bench_controller.py).
+OSC_KP = 2000.0
+# robosuite's own OSC_POSE stiffness, to which its action scale (output_max) is tuned, at its default control rate
+ROBOSUITE_OSC_KP = 150.0
+ROBOSUITE_CONTROL_FREQ_HZ = 20.0
+
+
+def osc_speed_per_offset(kp, kd, control_period_s: float):
+    """Speed (m/s or rad/s) at which OSC_POSE moves per unit of a delta action's offset (m or rad).
+
+    OSC anchors each step's goal at the pose reached and holds it for one control period, so the offset shrinks by
+    half a period's travel on average and the spoon settles where kp * (offset - speed * period / 2) = kd * speed.
+    Measured at kp=2000: 14.1 /s against 14.3 predicted; below ~1 mm offsets joint friction slows it further.
+    """
+    kp, kd = np.asarray(kp, dtype=float), np.asarray(kd, dtype=float)
+    return kp / (kd + kp * control_period_s / 2.0)
+
 
 # robosuite 1.5's IK_POSE is differential IK on MuJoCo's site Jacobian: nothing in it is robot-specific but its
 # 7-entry null-space gains, so it drives every 7-DoF arm; robosuite's list of IK robots predates that (pybullet URDFs)
@@ -31,6 +52,15 @@ def load_scoop_controller_config(controller: str = "OSC_POSE", robot: str = "XAr
         )
     config = copy.deepcopy(load_composite_controller_config(controller="BASIC", robot=robot))
     part = load_part_controller_config(default_controller=controller)
+    if controller == "OSC_POSE":
+        # stiffer, and the output range shrunk so that an action still means the speed it means with robosuite's
+        # defaults (devices keep their feel, and a policy's actions their size); damping stays critical
+        period = 1.0 / ROBOSUITE_CONTROL_FREQ_HZ
+        gain = osc_speed_per_offset(OSC_KP, 2.0 * np.sqrt(OSC_KP), period)
+        stock_gain = osc_speed_per_offset(part["kp"], 2.0 * np.sqrt(part["kp"]), period)
+        part["kp"] = OSC_KP
+        part["output_max"] = [float(v * stock_gain / gain) for v in part["output_max"]]
+        part["output_min"] = [float(v * stock_gain / gain) for v in part["output_min"]]
     if controller == "IK_POSE":
         SUPPORTED_IK_ROBOTS.add(robot)  # robosuite asserts membership when it builds the controller
         # IK_POSE hands absolute joint targets to its JointPositionController base, whose input_type defaults to

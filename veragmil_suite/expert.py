@@ -17,6 +17,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import robosuite.utils.transform_utils as T
 
+from veragmil_suite.controllers import osc_speed_per_offset
 from veragmil_suite.environments.scoop import POST_SCOOP_EEF_ROT, PRE_SCOOP_EEF_ROT
 
 # While lifting and carrying, the spoon's tip is raised a little past level, as people do, so the load rests against
@@ -127,11 +128,6 @@ PHASES = (
 )
 # the speed toward a waypoint falls off as this rate (1/s) times the remaining distance: no overshoot
 APPROACH_RATE = 4.0
-# integral of the velocity shortfall (goal offset per unit of lagging displacement), its bound (m, m, m, rad, rad,
-# rad) and its per-step leak (forgets a push against the pile or the floor within a second or so)
-INTEGRAL_GAIN = 1.5
-INTEGRAL_LIMIT = np.array([0.015, 0.015, 0.015, 0.15, 0.15, 0.15])
-INTEGRAL_LEAK = 0.97
 # one-axis (3D-mouse) operator: 0.1 rad of orientation error weighs like 1 cm of position error when picking the axis
 ONE_AXIS_WEIGHTS = np.array([1.0, 1.0, 1.0, 0.1, 0.1, 0.1])
 # a one-axis operator correcting drift gives the turn back after this long (s), so a spoon stalled in the pile
@@ -202,9 +198,7 @@ class ScriptedScooper:
         self.dt = 1.0 / env.control_freq
         # action units: a command of 1 moves the goal by output_max (m, rad) per control step
         self.action_scale = np.asarray(self.controller.output_max, dtype=float)
-        # OSC re-anchors the goal at the achieved pose every step, so the spoon settles at the speed where the
-        # stiffness pull kp * offset equals the damping kd * speed: an offset of speed * kd / kp gives that speed
-        self.speed_to_offset = np.asarray(self.controller.kd, dtype=float) / np.asarray(self.controller.kp, dtype=float)
+        self.speed_to_offset = 1.0 / osc_speed_per_offset(self.controller.kp, self.controller.kd, self.dt)
         self.reset()
 
     # -------------------------------------------------------------------------------------------------------- #
@@ -221,9 +215,7 @@ class ScriptedScooper:
         self.hold_steps = 0
         self.noise = np.zeros(6)
         self.injected = np.zeros(6)
-        self.integral = np.zeros(6)
         self.last_vel = np.zeros(3)
-        self.last_pose = None
         self.axis = None
         self.drift_steps = 0
         self.drift_accepted = 0.0
@@ -268,7 +260,6 @@ class ScriptedScooper:
             self.hold_steps += 1
             if np.linalg.norm(pos_err) <= self.profile.let_go_tol_m:
                 self.last_vel = np.zeros(3)
-                self.integral = np.zeros(6)
                 return np.zeros(6)
 
         vel = _clip_norm(pos_err * APPROACH_RATE, phase.speed * self.profile.speed)
@@ -283,14 +274,9 @@ class ScriptedScooper:
         base_rot = self._controller_frame()
         cmd = _to_frame(base_rot, cmd)
         err = _to_frame(base_rot, np.concatenate([pos_err, rot_err]))
-        measured = _to_frame(base_rot, self._measured_velocity(eef_pos, eef_rot))
         mask = self._one_axis(err, float(np.linalg.norm(pos_err))) if self.profile.one_axis else np.ones(6)
-        # velocity -> the goal offset that OSC turns into that velocity. XArm7's joints have 1 Nm of friction that
-        # swallows small offsets (the spoon stalls short of slow targets), so the offset also carries the integral
-        # of the velocity shortfall: a reference motion the spoon is pulled along (a hand pushes harder, too).
-        shortfall = INTEGRAL_GAIN * (cmd - measured) * self.dt * mask
-        self.integral = np.clip(INTEGRAL_LEAK * self.integral + shortfall, -INTEGRAL_LIMIT, INTEGRAL_LIMIT)
-        action = mask * (cmd * self.speed_to_offset + self.integral) / self.action_scale
+        # velocity -> the goal offset that OSC turns into that velocity
+        action = mask * cmd * self.speed_to_offset / self.action_scale
         if self.profile.input_levels:
             action = self._quantize(action)
         if self.profile.release_prob and self.rng.random() < self.profile.release_prob:
@@ -334,14 +320,6 @@ class ScriptedScooper:
         if name == "carry":
             return desired[:3].copy(), TIP_BACK @ desired_rot
         return desired[:3].copy(), desired_rot
-
-    def _measured_velocity(self, pos: np.ndarray, rot: np.ndarray) -> np.ndarray:
-        """The spoon's linear and angular velocity over the last control step, from the observed poses."""
-        last, self.last_pose = self.last_pose, (pos, rot)
-        if last is None:
-            return np.zeros(6)
-        ang = T.quat2axisangle(T.mat2quat(rot @ last[1].T))
-        return np.concatenate([pos - last[0], ang]) / self.dt
 
     def _controller_frame(self) -> np.ndarray:
         """Rotation of the frame OSC reads deltas in (robosuite 1.5: a site on the arm's first link)."""
