@@ -179,7 +179,10 @@ def test_scripted_3d_mouse_data_is_labelled_scripted(tmp_path):
 
 
 class FakeHeadset:
-    """A device that pushes the spoon up for a few steps, then presses the scripted button ("keep"/"discard")."""
+    """A device whose operator takes a while to squeeze the grip (IDLE calls), pushes the spoon up for a few steps,
+    then presses the scripted button ("keep"/"discard")."""
+
+    IDLE = 7
 
     def __init__(self, env, verdicts):
         self.env = env
@@ -187,13 +190,23 @@ class FakeHeadset:
         self.recording = False
         self.episode_command = None
         self.started = 0
+        self.recording_seen = []
 
     def start_control(self):
         self.started += 1
         self.episode_command = None
         self.steps = 0
+        self.calls = 0
+
+    @property
+    def engaged(self):
+        return self.calls > self.IDLE
 
     def input2action(self):
+        self.calls += 1
+        self.recording_seen.append(self.recording)
+        if not self.recording:  # waiting for the squeeze, or the call that saw it (the hand has not moved yet)
+            return {"right_delta": np.zeros(6)}
         self.steps += 1
         if self.steps > 5:
             self.episode_command = self.verdicts.pop(0)
@@ -206,11 +219,14 @@ class FakeHeadset:
 
 def test_keep_and_discard_from_the_device(tmp_path, monkeypatch, capsys):
     out = tmp_path / "vr.hdf5"
-    monkeypatch.setattr(
-        collect,
-        "make_operator",
-        lambda args, env: collect.TeleopOperator(env, FakeHeadset(env, ["discard", "keep"]), ""),
-    )
+    headset = None
+
+    def operator(args, env):
+        nonlocal headset
+        headset = FakeHeadset(env, ["discard", "keep"])
+        return collect.TeleopOperator(env, headset, "")
+
+    monkeypatch.setattr(collect, "make_operator", operator)
     argv = ["--device", "vr", *LIGHT, "--cameras", "--episodes", "1", "--operator", "tester", "--output", str(out)]
     assert collect.main(argv) == 0
     printed = capsys.readouterr().out
@@ -220,7 +236,9 @@ def test_keep_and_discard_from_the_device(tmp_path, monkeypatch, capsys):
         assert list(data.keys()) == ["demo_0"]
         g = data["demo_0"]
         assert g.attrs["device"] == "vr" and g.attrs["source"] == "human" and g.attrs["operator"] == "tester"
+        # the episode began at the squeeze: the idle time before it is neither recorded nor shown as recording
         assert g.attrs["num_samples"] == 5 and g.attrs["end_reason"] == "operator"
+        assert headset.recording_seen[: FakeHeadset.IDLE] == [False] * FakeHeadset.IDLE
         np.testing.assert_array_equal(g["actions"][:, 2], 0.3)
         attempts = json.loads(data.attrs["attempts"])
         assert [a["kept"] for a in attempts] == [False, True]

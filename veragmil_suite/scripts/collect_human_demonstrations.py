@@ -188,11 +188,25 @@ class TeleopOperator:
 
     def begin(self, seed: int | None = None) -> None:
         self.command = None
+        self.ended = False
         self.device.start_control()
+        if hasattr(self.device, "engaged"):
+            # a clutched device (VR): the episode starts at the operator's first squeeze; until then the robot
+            # stands still and nothing is recorded or counted against the horizon
+            self.device.status_message = "squeeze the grip to start"
+            while not self.device.engaged:
+                if self.device.input2action() is None:  # keep, discard or reset before starting: an empty episode
+                    self.command = getattr(self.device, "episode_command", None) or "reset"
+                    self.ended = True
+                    return
+                time.sleep(self.env.control_timestep)
+            self.device.status_message = ""
         if hasattr(self.device, "recording"):
             self.device.recording = True
 
     def action(self, obs: dict) -> np.ndarray | None:
+        if self.ended:
+            return None
         action_dict = self.device.input2action()
         if action_dict is None:
             self.command = getattr(self.device, "episode_command", None) or "reset"
