@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import robosuite
 
 from veragmil_suite.recording import open_dataset
 from veragmil_suite.scripts import collect_human_demonstrations as collect
@@ -244,6 +245,21 @@ def test_keep_and_discard_from_the_device(tmp_path, monkeypatch, capsys):
         assert [a["kept"] for a in attempts] == [False, True]
         assert attempts[0]["demo"] is None and attempts[1]["demo"] == "demo_0"
         assert all("success" in a and "grains_spilled" in a for a in attempts)
+
+
+@pytest.mark.parametrize("flag,allowed", [([], False), (["--vr-allow-emulated"], True)])
+def test_vr_allow_emulated_reaches_the_device(flag, allowed):
+    """An emulator (iwer) marks every pose as emulated; only the flag lets such poses drive the arm."""
+    args = collect.build_parser().parse_args(
+        ["--device", "vr", *LIGHT, "--vr-port", "0", "--output", "unused.hdf5", *flag]
+    )
+    env = robosuite.make("ScoopGranular", **collect.env_kwargs_from_args(args), has_renderer=False)
+    operator = collect.make_operator(args, env)
+    try:
+        assert operator.device.allow_emulated_position is allowed
+    finally:
+        operator.close()
+        env.close()
 
 
 def test_missing_hardware_or_display_is_named(tmp_path, monkeypatch):

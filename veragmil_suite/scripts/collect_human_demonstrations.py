@@ -87,6 +87,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rot-sensitivity", type=float, default=1.0, help="keyboard / spacemouse / vr rotation scale")
     p.add_argument("--vr-host", default="127.0.0.1", help="VR server address (0.0.0.0 for a Wi-Fi headset)")
     p.add_argument("--vr-port", type=int, default=8765)
+    p.add_argument(
+        "--vr-allow-emulated",
+        action="store_true",
+        help="vr: drive with poses the headset only estimates (WebXR emulatedPosition: a controller out of the "
+        "cameras' view, or a desktop emulator such as iwer, which marks every pose so); off: they release the grip",
+    )
     p.add_argument("--quiet", action="store_true", help="print only the per-episode lines and the summary")
     return p
 
@@ -262,6 +268,7 @@ def make_operator(args, env):
             port=args.vr_port,
             pos_sensitivity=args.pos_sensitivity,
             rot_sensitivity=args.rot_sensitivity,
+            allow_emulated_position=args.vr_allow_emulated,
             verbose=not args.quiet,
         )
     return TeleopOperator(env, device, args.operator or "")
