@@ -192,6 +192,9 @@ class FakeHeadset:
         self.episode_command = None
         self.started = 0
         self.recording_seen = []
+        self.progress = ""
+        self.progress_seen = []
+        self.farewell = None
 
     def start_control(self):
         self.started += 1
@@ -206,6 +209,7 @@ class FakeHeadset:
     def input2action(self):
         self.calls += 1
         self.recording_seen.append(self.recording)
+        self.progress_seen.append(self.progress)
         if not self.recording:  # waiting for the squeeze, or the call that saw it (the hand has not moved yet)
             return {"right_delta": np.zeros(6)}
         self.steps += 1
@@ -214,8 +218,8 @@ class FakeHeadset:
             return None
         return {"right_delta": np.array([0.0, 0.0, 0.3, 0.0, 0.0, 0.0])}
 
-    def close(self):
-        pass
+    def close(self, farewell=None):
+        self.farewell = farewell
 
 
 def test_keep_and_discard_from_the_device(tmp_path, monkeypatch, capsys):
@@ -240,6 +244,10 @@ def test_keep_and_discard_from_the_device(tmp_path, monkeypatch, capsys):
         # the episode began at the squeeze: the idle time before it is neither recorded nor shown as recording
         assert g.attrs["num_samples"] == 5 and g.attrs["end_reason"] == "operator"
         assert headset.recording_seen[: FakeHeadset.IDLE] == [False] * FakeHeadset.IDLE
+        # the operator sees where the collection stands, and its end
+        assert headset.progress_seen[0] == "episode 1 | kept 0/1 | discarded 0 | vr.hdf5"
+        assert headset.progress_seen[-1] == "episode 2 | kept 0/1 | discarded 1 | vr.hdf5"
+        assert headset.farewell == f"1 demo saved to {out}"
         np.testing.assert_array_equal(g["actions"][:, 2], 0.3)
         attempts = json.loads(data.attrs["attempts"])
         assert [a["kept"] for a in attempts] == [False, True]

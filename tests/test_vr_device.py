@@ -15,6 +15,7 @@ from vr_helpers import HAND, Client, controller, eef_pose, lockstep, make_lift_e
 
 from veragmil_suite.devices import VRDevice
 from veragmil_suite.devices import vr_frames as F
+from veragmil_suite.devices.vr_server import CLOSE_FINISHED
 
 
 @pytest.fixture(scope="module")
@@ -211,6 +212,27 @@ def test_reconnect_without_restart(session):
     np.testing.assert_allclose(moved, M @ [0.04, 0.04, 0.0], atol=0.008)
     assert device.server.stats()["connections"] == connections0 + 1
     assert device.episode_command is None
+
+
+def test_the_page_is_told_the_collection_state_and_when_it_is_over():
+    env = make_lift_env()
+    device = VRDevice(env, port=0, camera_name="agentview", verbose=False)
+    client = Client(device.url).connect()
+    try:
+        device.progress = "episode 3 | kept 2/5 | discarded 0 | vr.hdf5"
+        device.start_control()
+        deadline = time.monotonic() + 5
+        while not any("kept 2/5" in s["text"] for s in client.statuses) and time.monotonic() < deadline:
+            device.input2action()
+            time.sleep(0.05)
+        assert any(s["progress"] == device.progress for s in client.statuses)
+        device.close(farewell="2 demos saved to vr.hdf5")
+        assert client.wait_closed() == CLOSE_FINISHED  # the page stops reconnecting on this code
+        assert client.statuses[-1] == {"v": 1, "type": "status", "text": "2 demos saved to vr.hdf5", "final": True}
+    finally:
+        client.close()
+        device.close()
+        env.close()
 
 
 def test_spoon_lands_on_the_held_target_in_scoop_granular():

@@ -135,6 +135,7 @@ class VRDevice(Device):
         self.camera_name = camera_name or self._default_camera(env)
         self.recording = False
         self.status_message = ""
+        self.progress = ""  # the collection's state, set by the recorder: episode, kept and discarded counts, file
         self.episode_command: str | None = None
         self.episodes = 0
         self.pose_age: float | None = None  # age of the newest pose at the last control step (s)
@@ -378,10 +379,11 @@ class VRDevice(Device):
             discontinuities=self._filter.discontinuities,
         )
 
-    def close(self) -> None:
-        """Stop streaming and serving (the port is free again)."""
+    def close(self, farewell: str | None = None) -> None:
+        """Stop streaming and serving (the port is free again). ``farewell`` (for example "12 demos saved to
+        FILE") is shown on the page as the session's last word, and the page stops reconnecting."""
         self.stream.stop()
-        self.server.stop()
+        self.server.stop(farewell)
 
     def __enter__(self) -> VRDevice:
         return self
@@ -504,6 +506,8 @@ class VRDevice(Device):
         shown = self.stream.shown_depth_range
         if self.stream.depth and shown is not None:
             parts.append(f"depth {shown[0]:.2f}-{shown[1]:.2f} m")
+        if self.progress:
+            parts.append(self.progress)
         if self.episode_command is not None:
             parts.append(f"episode: {self.episode_command}")
         if self.status_message:
@@ -523,6 +527,7 @@ class VRDevice(Device):
             recenter=self._recenters,
             episode=self.episodes,
             episode_command=self.episode_command,
+            progress=self.progress,
             text=" | ".join(parts),
         )
 

@@ -25,7 +25,9 @@ Everything the page sends is JSON text, one object per WebSocket message, at mos
 ``pong``: ``{"v": 1, "type": "pong", "id": <id of the server's ping>}``.
 
 The server sends JSON text (``welcome`` with the configuration, ``status`` about 10 times a second, ``ping`` once
-a second, ``error`` before closing) and binary camera frames: ``FRAME_HEADER`` (little-endian: magic ``b"VF"``,
+a second, ``error`` before closing; when the collection is over, a last ``status`` with ``"final": true`` whose
+``text`` says what was saved, then close code ``CLOSE_FINISHED``: the page shows it and stops reconnecting)
+and binary camera frames: ``FRAME_HEADER`` (little-endian: magic ``b"VF"``,
 version, panels (1 RGB, 2 RGB|depth side by side), frame id, simulated time, width, height) then a JPEG.
 
 Unknown fields are ignored (a newer page still works); anything else unexpected raises ``ProtocolError`` with a

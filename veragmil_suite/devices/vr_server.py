@@ -57,6 +57,7 @@ _HOST_RE = re.compile(r"[A-Za-z0-9.\-\[\]:]+")  # a Host header fit to be echoed
 
 # close codes in the application range (4000-4999)
 CLOSE_SUPERSEDED = 4000
+CLOSE_FINISHED = 4100  # the program is done with the headset (the collection is over): no reconnecting
 CLOSE_UNAUTHORIZED = 4401
 CLOSE_HELLO_TIMEOUT = 4408
 CLOSE_LOCKED_OUT = 4429
@@ -206,13 +207,14 @@ class VRServer:
             raise self._error
         return self
 
-    def stop(self) -> None:
-        """Close the connection and the port; safe to call twice."""
+    def stop(self, farewell: str | None = None) -> None:
+        """Close the connection and the port; safe to call twice. With ``farewell``, the page is told that the
+        session is over (a final status with that text, close code CLOSE_FINISHED) and does not reconnect."""
         loop, thread = self._loop, self._thread
         if loop is None or thread is None:
             return
         try:
-            asyncio.run_coroutine_threadsafe(self._shutdown(), loop).result(10.0)
+            asyncio.run_coroutine_threadsafe(self._shutdown(farewell), loop).result(10.0)
         except Exception:
             LOG.exception("VR server shutdown")
         loop.call_soon_threadsafe(loop.stop)
@@ -255,9 +257,16 @@ class VRServer:
         await site.start()
         self.port = self._runner.addresses[0][1]
 
-    async def _shutdown(self) -> None:
+    async def _shutdown(self, farewell: str | None = None) -> None:
         if self._client is not None and not self._client.closed:
-            await self._client.close(code=WSCloseCode.GOING_AWAY, message=b"server stopping")
+            if farewell is None:
+                await self._client.close(code=WSCloseCode.GOING_AWAY, message=b"server stopping")
+            else:
+                try:
+                    await self._client.send_str(server_message("status", text=farewell, final=True))
+                except ConnectionError:
+                    pass  # the page is gone already; it reconnects to nothing and says so
+                await self._client.close(code=CLOSE_FINISHED, message=b"finished")
         if self._runner is not None:
             await self._runner.cleanup()
 

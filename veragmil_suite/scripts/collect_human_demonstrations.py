@@ -237,8 +237,15 @@ class TeleopOperator:
         if hasattr(self.device, "recording"):
             self.device.recording = False
 
-    def close(self) -> None:
-        if hasattr(self.device, "close"):
+    def show_progress(self, text: str) -> None:
+        """The collection's state on the device's status line, where it has one (VR)."""
+        if hasattr(self.device, "progress"):
+            self.device.progress = text
+
+    def close(self, farewell: str | None = None) -> None:
+        if hasattr(self.device, "progress"):
+            self.device.close(farewell=farewell)
+        elif hasattr(self.device, "close"):
             self.device.close()
 
 
@@ -464,8 +471,15 @@ def main(argv: list[str] | None = None) -> int:
             f"recording {args.food} with {args.device} ({operator_name}) into {args.output}; keep: {keep_policy}"
             + workers
         )
+    teleop = operator if isinstance(operator, TeleopOperator) else None
+    discarded = 0
     try:
         while kept < args.episodes and (max_attempts is None or attempts < max_attempts):
+            if teleop is not None:
+                teleop.show_progress(
+                    f"episode {attempts + 1} | kept {kept}/{args.episodes} | discarded {discarded} | "
+                    f"{os.path.basename(args.output)}"
+                )
             seed, reason, episode = next(attempts_iter)
             attempts += 1
             if episode is None:
@@ -491,13 +505,17 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"  saved as {name} ({kept}/{args.episodes})", flush=True)
             else:
                 writer.log_discarded(metrics, attrs=dict(attempt=attempts, end_reason=reason, seed=seed))
+                discarded += 1
                 print("  discarded", flush=True)
     except KeyboardInterrupt:
         kept = len(writer.written)
         print(f"\ninterrupted: the episode in progress is dropped; {kept} episodes saved to {args.output}")
     finally:
         attempts_iter.close()
-        if operator is not None:
+        if teleop is not None:
+            saved = len(writer.written)
+            teleop.close(farewell=f"{saved} demo{'' if saved == 1 else 's'} saved to {args.output}")
+        elif operator is not None:
             operator.close()
         if env is not None:
             env.close()

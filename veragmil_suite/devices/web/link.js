@@ -5,6 +5,7 @@ export const SCHEMA_VERSION = 1;
 const FRAME_HEADER_BYTES = 20; // "<2sBBIdHH": magic "VF", version, panels, frame id, sim time, width, height
 const CLOSE_UNAUTHORIZED = 4401;
 const CLOSE_SUPERSEDED = 4000;
+const CLOSE_FINISHED = 4100; // the program is done with the headset: nothing to reconnect to
 const MAX_BUFFERED_BYTES = 32 * 1024; // poses wait no longer than this behind a slow link: newer ones follow
 
 export function parseFrame(buffer) {
@@ -54,7 +55,8 @@ export class Link extends EventTarget {
         this.dispatchEvent(new CustomEvent("unauthorized", { detail: event.reason }));
         return; // a new token is needed before trying again
       }
-      if (event.code === CLOSE_SUPERSEDED || this.stopped) return; // another page took over
+      if (event.code === CLOSE_FINISHED) this.stopped = true;
+      if (event.code === CLOSE_SUPERSEDED || this.stopped) return; // another page took over, or it is over
       setTimeout(() => this.connect(), this.retryDelay);
       this.retryDelay = Math.min(this.retryDelay * 2, 3000);
     };

@@ -23,6 +23,8 @@ const stats = {
   statusReceived: 0,
   lastFrame: null,
   lastStatus: null,
+  finalText: null, // the program's last word when the session is over ("N demos saved to FILE")
+  finished: false,
   inXR: false,
   error: null,
 };
@@ -108,11 +110,15 @@ link.addEventListener("status", (event) => {
   stats.lastStatus = msg;
   if (lastRecenter !== null && msg.recenter !== lastRecenter) placePanel = true;
   lastRecenter = msg.recenter;
+  if (msg.final) stats.finalText = msg.text;
   showStatus(msg.text);
 });
 link.addEventListener("close", (event) => {
   stats.connected = false;
-  showStatus(event.detail.code === 4000 ? "another page took over the connection" : "disconnected: reconnecting…");
+  const code = event.detail.code;
+  stats.finished = code === 4100;
+  if (stats.finished) showStatus(`finished: ${stats.finalText || "the program closed the session"}`);
+  else showStatus(code === 4000 ? "another page took over the connection" : "disconnected: reconnecting…");
 });
 link.addEventListener("unauthorized", () => {
   pairForm.hidden = false;
@@ -169,7 +175,7 @@ async function enterVR() {
 
   function drawStatus() {
     const s = stats.lastStatus;
-    statusContext.fillStyle = !stats.connected ? "#602020" : s && s.engaged ? "#1d5a2a" : "#202430";
+    statusContext.fillStyle = stats.finished ? "#203a60" : !stats.connected ? "#602020" : s && s.engaged ? "#1d5a2a" : "#202430";
     statusContext.fillRect(0, 0, statusCanvas.width, statusCanvas.height);
     statusContext.fillStyle = "#f0f0f0";
     statusContext.font = "28px sans-serif";
