@@ -8,7 +8,10 @@ only when those are absent.
 
 import json
 import shutil
+import socket
 import subprocess
+import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +19,7 @@ import pytest
 from vr_helpers import make_lift_env, run_loop
 
 from veragmil_suite.devices import VRDevice
+from veragmil_suite.recording import open_dataset
 
 BROWSER_DIR = Path(__file__).resolve().parent / "browser"
 CHROMIUM = Path("/usr/bin/chromium")
@@ -82,3 +86,61 @@ def test_emulated_quest_in_chromium_drives_the_arm_and_sees_the_camera():
         size = np.linalg.norm(move)
         assert np.dot(moved, direction) / np.linalg.norm(moved) > 0.95  # the same way
         assert np.linalg.norm(moved) == pytest.approx(size, rel=0.2)  # about as far (scale 1)
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_a_vr_collection_in_chromium_discards_keeps_and_saves_scoop_granular_demos(tmp_path):
+    """veragmil-collect --device vr as an operator meets it: the page shows the collection's state, an episode
+    starts at the first squeeze, B discards, A keeps, and the page is told what was saved."""
+    out = tmp_path / "vr.hdf5"
+    port = _free_port()
+    collect = subprocess.Popen(
+        [str(Path(sys.executable).with_name("veragmil-collect")), "--device", "vr", "--vr-port", str(port),
+         "--vr-allow-emulated", "--food", "pasta", "--n-grains", "12", "--camera-size", "64", "--episodes", "1",
+         "--operator", "browser", "--output", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    steps = [
+        {"waitFor": "kept 0/1 | discarded 0"},
+        {"move": [0.0, 0.05, 0.0], "press": "b-button", "waitFor": "discarded 1"},
+        {"move": [0.05, 0.0, 0.0], "press": "a-button", "waitFor": f"1 demo saved to {out}"},
+    ]
+    browser = None
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and collect.poll() is None:
+            try:
+                socket.create_connection(("127.0.0.1", port), timeout=0.5).close()
+                break
+            except OSError:
+                time.sleep(0.2)
+        browser = subprocess.run(
+            ["node", "e2e_vr.mjs", f"http://localhost:{port}/", json.dumps(steps)],
+            cwd=BROWSER_DIR, capture_output=True, text=True, timeout=240,
+        )  # fmt: skip
+        stdout, stderr = collect.communicate(timeout=60)
+    finally:
+        if collect.poll() is None:
+            collect.kill()
+            print("collect:", collect.communicate()[0][-3000:])
+            if browser is not None:
+                print("browser:", browser.stdout[-3000:], browser.stderr[-3000:])
+    assert browser.returncode == 0, f"browser script failed:\n{browser.stderr[-3000:]}"
+    assert collect.returncode == 0, stderr[-3000:]
+    result = json.loads(browser.stdout.strip().splitlines()[-1])
+    assert result["errors"] == []
+    assert result["stats"]["finished"] and result["stats"]["finalText"] == f"1 demo saved to {out}"
+    with open_dataset(out) as f:
+        data = f["data"]
+        assert list(data.keys()) == ["demo_0"]
+        demo = data["demo_0"]
+        assert demo.attrs["device"] == "vr" and demo.attrs["operator"] == "browser"
+        assert demo.attrs["end_reason"] == "operator"
+        assert np.abs(demo["actions"][()]).max() > 0.05  # the hand moved the spoon
+        attempts = json.loads(data.attrs["attempts"])
+        assert [a["kept"] for a in attempts] == [False, True]

@@ -1,10 +1,10 @@
 // End-to-end drive of the VR page in headless Chromium with Meta's WebXR emulator (iwer), for test_vr_browser.py.
 //
-//   node e2e_vr.mjs <page url> <moves json>
+//   node e2e_vr.mjs <page url> <steps json>
 //
 // Opens our real page served by our server, lets it connect and show camera frames, enters the immersive
-// session, then for each move squeezes the emulated right controller, moves it by [dx, dy, dz] metres (XR frame)
-// over one second, holds, releases. The page itself knows nothing of iwer: the emulator is injected before any
+// session, then for each step squeezes the emulated right controller, moves it by [dx, dy, dz] metres (XR frame)
+// over one second, holds, releases; a step may also long-press a button and wait for a status text. The page itself knows nothing of iwer: the emulator is injected before any
 // page script runs and installed over Chromium's own navigator.xr (forceInstall). Prints one JSON line: the page's
 // counters, per-move timings, and console errors.
 
@@ -58,24 +58,38 @@ try {
   await page.waitForFunction(() => window.vrTeleop.stats.inXR && window.vrTeleop.stats.xrFrames > 20, null, {
     timeout: 30000,
   });
-  for (const move of moves) {
+  for (const step of moves) {
+    // a step is a hand move [dx, dy, dz], or {move, press, waitFor}: the move, then a long press of a button
+    // ("a-button", "b-button"), then waiting until the status line contains waitFor
+    const move = Array.isArray(step) ? step : step.move;
     const t0 = Date.now();
-    await page.evaluate(() => window.__emulatedHeadset.controllers.right.updateButtonValue("squeeze", 1));
-    await page.waitForFunction(() => window.vrTeleop.stats.lastStatus && window.vrTeleop.stats.lastStatus.engaged,
-      null, { timeout: 10000 });
-    await page.evaluate(async (d) => {
-      const c = window.__emulatedHeadset.controllers.right;
-      const start = [c.position.x, c.position.y, c.position.z];
-      for (let k = 1; k <= 50; k++) {
-        c.position.set(start[0] + (d[0] * k) / 50, start[1] + (d[1] * k) / 50, start[2] + (d[2] * k) / 50);
-        await new Promise((r) => setTimeout(r, 20));
-      }
-    }, move);
-    await page.waitForTimeout(1500); // hold: the arm settles
-    await page.evaluate(() => window.__emulatedHeadset.controllers.right.updateButtonValue("squeeze", 0));
-    await page.waitForFunction(() => !window.vrTeleop.stats.lastStatus.engaged, null, { timeout: 10000 });
-    await page.waitForTimeout(500);
-    result.moves.push({ move, ms: Date.now() - t0 });
+    if (move) {
+      await page.evaluate(() => window.__emulatedHeadset.controllers.right.updateButtonValue("squeeze", 1));
+      await page.waitForFunction(() => window.vrTeleop.stats.lastStatus && window.vrTeleop.stats.lastStatus.engaged,
+        null, { timeout: 10000 });
+      await page.evaluate(async (d) => {
+        const c = window.__emulatedHeadset.controllers.right;
+        const start = [c.position.x, c.position.y, c.position.z];
+        for (let k = 1; k <= 50; k++) {
+          c.position.set(start[0] + (d[0] * k) / 50, start[1] + (d[1] * k) / 50, start[2] + (d[2] * k) / 50);
+          await new Promise((r) => setTimeout(r, 20));
+        }
+      }, move);
+      await page.waitForTimeout(1500); // hold: the arm settles
+      await page.evaluate(() => window.__emulatedHeadset.controllers.right.updateButtonValue("squeeze", 0));
+      await page.waitForFunction(() => !window.vrTeleop.stats.lastStatus.engaged, null, { timeout: 10000 });
+      await page.waitForTimeout(500);
+    }
+    if (step.press) {
+      await page.evaluate((b) => window.__emulatedHeadset.controllers.right.updateButtonValue(b, 1), step.press);
+      await page.waitForTimeout(1000); // a long press: a brush of the thumb does nothing
+      await page.evaluate((b) => window.__emulatedHeadset.controllers.right.updateButtonValue(b, 0), step.press);
+    }
+    if (step.waitFor) {
+      await page.waitForFunction((text) => document.getElementById("status").textContent.includes(text),
+        step.waitFor, { timeout: 30000 });
+    }
+    result.moves.push({ move, press: step.press || null, ms: Date.now() - t0 });
   }
   result.stats = await page.evaluate(stats);
 } finally {

@@ -34,6 +34,9 @@ LOG = logging.getLogger(__name__)
 
 WORKER = Path(__file__).resolve().parent / "vr_render.py"
 RESTART_DELAY_S = 2.0
+# a still scene (the simulation paused: before the first squeeze, between episodes) is sent again this often (s),
+# without rendering it again, so that a page that connects or drops a frame still shows it
+STILL_FRAME_REPEAT_S = 0.5
 RENDER_NICENESS = 10  # the renderer yields the CPU to the simulation: the environment must keep real time
 
 
@@ -88,6 +91,7 @@ class CameraStream:
         self.last_depth_m: np.ndarray | None = None
         self.shown_depth_range: tuple[float, float] | None = None  # metres from red to blue on the depth panel
         self.frames = 0
+        self._last_frame: tuple[bytes, float] | None = None  # the last frame sent and when
         self.errors = 0
         self.restarts = 0
         self.models_sent = 0
@@ -231,7 +235,10 @@ class CameraStream:
             return last_sim_time
         model, data = sim.model._model, sim.data._data
         if float(data.time) == last_sim_time and model is self._model:
-            return last_sim_time  # nothing moved since the last frame (paused between episodes)
+            # nothing moved since the last frame: no new render, but the same frame again now and then
+            if self._last_frame is not None and time.monotonic() - self._last_frame[1] >= STILL_FRAME_REPEAT_S:
+                self._send(self._last_frame[0])
+            return last_sim_time
         if model is not self._model:
             self._send_model(model)
         sim_time = float(data.time)
@@ -252,7 +259,10 @@ class CameraStream:
         if result["depth_m"] is not None:
             self.last_depth_m = result["depth_m"]
         self.shown_depth_range = result["depth_range"]
-        frame = pack_frame(result["jpeg"], self.frames, sim_time, result["width"], result["height"], panels)
+        self._send(pack_frame(result["jpeg"], self.frames, sim_time, result["width"], result["height"], panels))
+        return sim_time
+
+    def _send(self, frame: bytes) -> None:
+        self._last_frame = (frame, time.monotonic())
         if self.on_frame is not None:
             self.on_frame(frame)
-        return sim_time
