@@ -313,6 +313,24 @@ def test_physics_blow_up_ends_the_episode_without_crashing():
     env.close()
 
 
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_non_finite_action_is_not_executed_and_ends_the_episode(bad):
+    env = make_env("pasta")
+    env.reset()
+    state = env.sim.get_state().flatten()
+    action = np.zeros(6)
+    action[2] = bad
+    obs, reward, done, info = env.step(action)
+    assert done and reward == 0.0
+    assert "non-finite action" in info["physics_error"] and "[2]" in info["physics_error"]
+    np.testing.assert_array_equal(env.sim.get_state().flatten(), state)  # the arm did not go limp: nothing ran
+    with pytest.raises(ValueError, match="terminated"):  # robosuite's own refusal to step an ended episode
+        env.step(np.zeros(6))
+    env.reset()
+    assert env.step(np.zeros(6))[3]["physics_error"] == ""  # a reset clears it
+    env.close()
+
+
 def test_overhead_camera_renders_rgb_and_depth():
     env = make_env(
         "peas",

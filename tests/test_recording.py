@@ -16,6 +16,7 @@ from recording_helpers import CAMERA_SIZE, make_env, record_file, tiny_env_kwarg
 from veragmil_suite.recording import (
     DatasetError,
     DemoWriter,
+    EpisodeRecorder,
     env_meta,
     observe,
     open_dataset,
@@ -262,3 +263,20 @@ def test_killed_mid_episode_the_file_keeps_every_finished_episode(tmp_path):
         for name in data:
             assert data[name]["states"][()].shape[0] == 5
             assert data[name]["obs/overhead_image"][()].shape == (5, CAMERA_SIZE, CAMERA_SIZE, 3)
+
+
+def test_a_non_finite_action_is_never_stored(tmp_path):
+    env = make_env(tiny_env_kwargs(cameras=()))
+    recorder = EpisodeRecorder(env)
+    recorder.reset(seed=0)
+    recorder.step(np.full(6, 0.1))
+    _, _, done, info = recorder.step(np.array([0.1, np.nan, 0, 0, 0, 0]))
+    assert done and "non-finite action" in info["physics_error"]
+    assert recorder.num_steps == 1  # the NaN step is not in the episode
+    episode = recorder.episode()
+    assert np.isfinite(episode.actions).all() and episode.actions.shape == (1, 6)
+    with pytest.raises(ValueError, match="non-finite action label"):  # a label is checked before anything runs
+        recorder.reset(seed=0)
+        recorder.step(np.zeros(6), label=np.array([np.inf, 0, 0, 0, 0, 0]))
+    assert recorder.num_steps == 0
+    env.close()

@@ -238,12 +238,17 @@ class EpisodeRecorder:
         if self.obs is None:
             raise RuntimeError("EpisodeRecorder.reset() must come before step()")
         action = np.asarray(action, dtype=np.float64)
+        stored = action if label is None else np.asarray(label, dtype=np.float64)
+        if label is not None and not np.isfinite(stored).all():
+            raise ValueError(f"non-finite action label {stored.tolist()}: labels must be finite numbers")
         state = self.env.sim.get_state().flatten()
         raw, reward, done, info = self.env.step(action)
+        if not np.isfinite(action).all():
+            return raw, reward, done, info  # not executed (env.step ended the episode and says why): not stored
         after = robomimic_obs(self.env, raw)
         self._states.append(state)
         self._executed.append(action.copy())
-        self._actions.append(action.copy() if label is None else np.asarray(label, dtype=np.float64).copy())
+        self._actions.append(stored.copy())
         self._rewards.append(float(reward))
         self._successes.append(bool(info.get("success", False)))
         self._obs.append(self._converted)

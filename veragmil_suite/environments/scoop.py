@@ -510,6 +510,19 @@ class ScoopGranular(ManipulationEnv):
         self._metrics_time = stamp
         return self._metrics
 
+    def step(self, action):
+        """
+        robosuite's step, except that an action with NaN or inf is not executed: it ends the episode with
+        info["physics_error"] naming it, as a physics blow-up does (OSC turned it into a limp, falling arm).
+        """
+        values = np.asarray(action, dtype=float)
+        if np.isfinite(values).all() or self.done:
+            return super().step(action)
+        bad = np.flatnonzero(~np.isfinite(values)).tolist()
+        self._physics_error = f"non-finite action (NaN or inf at indices {bad}); actions must be finite numbers"
+        self.done = True
+        return self._get_observations(), 0.0, True, self.scoop_info()
+
     def _physics_check(self) -> str:
         """A description of a physics blow-up, or "" when the simulation is sound."""
         data = self.sim.data
