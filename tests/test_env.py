@@ -7,6 +7,7 @@ import robosuite
 import robosuite.utils.transform_utils as T
 from helpers_env import grain_positions, make_env
 
+from veragmil_suite import settling
 from veragmil_suite.controllers import load_scoop_controller_config
 from veragmil_suite.environments.scoop import POST_SCOOP_EEF_ROT, PRE_SCOOP_EEF_ROT, SCOOP_STAGES, StageTracker
 from veragmil_suite.foods import FOODS
@@ -329,6 +330,22 @@ def test_non_finite_action_is_not_executed_and_ends_the_episode(bad):
     env.reset()
     assert env.step(np.zeros(6))[3]["physics_error"] == ""  # a reset clears it
     env.close()
+
+
+@pytest.mark.parametrize("damage", ["truncated", "garbage", "empty"])
+def test_a_damaged_pile_cache_is_settled_again_and_replaced(tmp_path, monkeypatch, damage):
+    monkeypatch.setenv("VERAGMIL_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(settling, "_MEMORY", {})
+    make_env("pasta", n_grains=12, pile_variants=1).close()
+    (cached,) = tmp_path.glob("*.npz")
+    good = cached.read_bytes()
+    cached.write_bytes({"truncated": good[: len(good) // 2], "garbage": b"not a zip file", "empty": b""}[damage])
+    monkeypatch.setattr(settling, "_MEMORY", {})
+    env = make_env("pasta", n_grains=12, pile_variants=1)  # no BadZipFile: the pile is settled anew
+    env.reset()
+    env.close()
+    with np.load(cached) as f:  # and the entry replaced by a readable one
+        assert f["grain_qpos"].shape == (12, 7)
 
 
 def test_overhead_camera_renders_rgb_and_depth():

@@ -85,11 +85,11 @@ def settle(bowl: Bowl, pile: GrainPile, option: dict, timestep: float, use_disk:
         try:
             with np.load(path) as f:
                 result = SettledPile(f["bowl_qpos"], f["grain_qpos"], float(f["max_speed"]), float(f["settle_time"]))
-            if result.grain_qpos.shape == (pile.n_grains, 7):
+            if result.grain_qpos.shape == (pile.n_grains, 7) and np.isfinite(result.grain_qpos).all():
                 _MEMORY[key] = result
                 return result
-        except (OSError, KeyError, ValueError):
-            pass  # a damaged cache file is simulated anew and overwritten
+        except Exception:  # noqa: BLE001 - truncated (BadZipFile, EOFError), foreign or damaged: any of them
+            pass  # is simulated anew and overwritten
     result = _simulate(xml, bowl, pile)
     _MEMORY[key] = result
     if use_disk:
