@@ -311,3 +311,50 @@ def test_every_console_command_has_help(main, expected, capsys):
         main(["--help"])
     assert stop.value.code == 0
     assert expected in capsys.readouterr().out
+
+
+def test_appending_continues_the_seeds_and_an_explicit_repeat_is_refused(tmp_path, capsys):
+    out = tmp_path / "same.hdf5"
+    args = ["--device", "scripted", *LIGHT, "--cameras", "--keep", "all", "--horizon", "10", "--output", str(out)]
+    assert collect.main([*args, "--episodes", "2"]) == 0
+    assert collect.main([*args, "--episodes", "1"]) == 0  # the same command again: no seed given
+    with open_dataset(out) as f:
+        assert [int(f["data"][n].attrs["seed"]) for n in ("demo_0", "demo_1", "demo_2")] == [0, 1, 2]
+    assert dataset_tools.dataset_summary(out)["duplicates"] == []
+    before = out.read_bytes()
+    capsys.readouterr()
+    assert collect.main([*args, "--episodes", "1", "--seed", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "seeds up to 2" in err and "continue from 3" in err and "Traceback" not in err
+    assert out.read_bytes() == before  # nothing recorded is touched
+
+
+def test_a_dataset_tool_flags_a_demo_recorded_twice(tmp_path, capsys):
+    out = tmp_path / "twice.hdf5"
+    args = ["--device", "scripted", *LIGHT, "--cameras", "--keep", "all", "--horizon", "10", "--episodes", "1"]
+    for path in (tmp_path / "a.hdf5", tmp_path / "b.hdf5"):  # two files made with the same seed...
+        assert collect.main([*args, "--seed", "5", "--output", str(path)]) == 0
+    assert dataset_tools.merge_main([str(tmp_path / "a.hdf5"), str(tmp_path / "b.hdf5"), "--output", str(out)]) == 0
+    assert dataset_tools.dataset_summary(out)["duplicates"] == [["demo_0", "demo_1"]]  # ...merged: flagged
+    capsys.readouterr()
+    assert dataset_tools.info_main([str(out)]) == 0
+    assert "DUPLICATES: demo_0, demo_1" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "bad,message",
+    [
+        (["--robot", "Nonexistent"], "Unknown robot 'Nonexistent'; robosuite's robots: "),
+        (["--n-grains", "0"], "n_grains"),
+    ],
+)
+def test_a_refused_start_creates_nothing(tmp_path, capsys, bad, message):
+    out = tmp_path / "fresh.hdf5"
+    args = ["--device", "scripted", *LIGHT, "--cameras", "--keep", "all", "--horizon", "10", "--episodes", "1"]
+    assert collect.main([*args, *bad, "--output", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+    assert not out.exists()
+    assert collect.main([*args, "--output", str(out)]) == 0  # the same path works with correct arguments
+    with open_dataset(out) as f:
+        assert list(f["data"].keys()) == ["demo_0"]

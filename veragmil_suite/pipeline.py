@@ -143,14 +143,13 @@ def food_seed(seed: int, food: str) -> int:
 
 def _recorded(path: Path) -> dict:
     """What a food's file holds: demos, and the settings it was recorded with."""
-    from veragmil_suite.recording import demo_names, open_dataset
+    from veragmil_suite.recording import demo_names, open_dataset, seeds_used
 
     with open_dataset(path) as f:
         kwargs = json.loads(f["data"].attrs["env_args"])["env_kwargs"]
         names = demo_names(f)
         first = f["data"][names[0]].attrs if names else {}
-        tried = [a["seed"] for a in json.loads(f["data"].attrs.get("attempts", "[]")) if "seed" in a]
-        tried += [int(f["data"][n].attrs["seed"]) for n in names if "seed" in f["data"][n].attrs]
+        tried = seeds_used(f)
         return dict(
             next_seed=max(tried) + 1 if tried else None,
             demos=len(names),

@@ -402,7 +402,8 @@ class DemoWriter:
     Writes episodes to a robomimic-schema HDF5 file, each one flushed and the file closed when it is written.
 
     Args:
-        path (str or Path): the file; created if absent, else appended to (numbering continues)
+        path (str or Path): the file; appended to if it exists (numbering continues), else created with the first
+            episode written or discarded (a collection that fails to start leaves nothing behind)
         env_meta (dict): robomimic env metadata of the env recorded (:func:`env_meta`)
         provenance (dict): attributes stored with the file and every demo (:func:`provenance`): device, operator,
             food, robot, versions, date, ...
@@ -420,6 +421,8 @@ class DemoWriter:
         self.provenance = dict(provenance)
         self.valid_ratio = valid_ratio
         self.written: list[str] = []  # demos written by this writer, in order
+        self.seeds_used: set[int] = set()  # env seeds of the file's attempts, kept or discarded
+        self.next_index = 0
         if self.path.exists():
             with open_dataset(self.path, "a") as f:
                 self._check_appendable(f)
@@ -427,19 +430,21 @@ class DemoWriter:
                     if name.startswith(_PENDING_PREFIX):
                         del f["data"][name]  # an episode whose writing was interrupted
                 self.next_index = self._next_index(f)
-        else:
+                self.seeds_used = seeds_used(f)
+
+    def _create_if_absent(self) -> None:
+        if not self.path.exists():
             self.path.parent.mkdir(parents=True, exist_ok=True)
             with h5py.File(self.path, "w") as f:
                 data = f.create_group("data")
-                data.attrs["env_args"] = json.dumps(env_meta, indent=4)
+                data.attrs["env_args"] = json.dumps(self.env_meta, indent=4)
                 data.attrs["total"] = 0
                 data.attrs["writer"] = WRITER
                 data.attrs["format_version"] = FORMAT_VERSION
                 for key, value in self.provenance.items():
                     data.attrs[key] = _attr(value)
                 data.attrs["attempts"] = "[]"
-                refresh_summary(f, valid_ratio)
-            self.next_index = 0
+                refresh_summary(f, self.valid_ratio)
 
     def _check_appendable(self, f: h5py.File) -> None:
         data = f["data"]
@@ -464,12 +469,15 @@ class DemoWriter:
 
     @property
     def num_demos(self) -> int:
+        if not self.path.exists():
+            return 0
         with open_dataset(self.path) as f:
             return len(demo_names(f))
 
     def write(self, episode: Episode) -> str:
         """Append one episode as the next demo_N, flush and close the file; returns the demo's name."""
         name = f"{DEMO_PREFIX}{self.next_index}"
+        self._create_if_absent()
         with _deferred_sigint(), h5py.File(self.path, "a") as f:
             data = f["data"]
             first = demo_names(f)[:1]
@@ -506,6 +514,7 @@ class DemoWriter:
 
     def log_discarded(self, metrics: dict, attrs: dict | None = None) -> None:
         """Store the metrics of an episode the operator discarded (success rates must count every attempt)."""
+        self._create_if_absent()
         with _deferred_sigint(), h5py.File(self.path, "a") as f:
             self._log(f["data"], dict(demo=None, kept=False, **(attrs or {}), **metrics))
 
@@ -525,6 +534,15 @@ class DemoWriter:
 
     def _update_totals(self, f: h5py.File) -> None:
         refresh_summary(f, self.valid_ratio)
+
+
+def seeds_used(f: h5py.File) -> set[int]:
+    """The env seeds of a file's attempts: its demos' and its attempts log's (discarded attempts too)."""
+    seeds = {int(f["data"][name].attrs["seed"]) for name in demo_names(f) if "seed" in f["data"][name].attrs}
+    for attempt in json.loads(f["data"].attrs.get("attempts", "[]")):
+        if attempt.get("seed") is not None:
+            seeds.add(int(attempt["seed"]))
+    return seeds
 
 
 def refresh_summary(f: h5py.File, valid_ratio: float = 0.1, seed: int = 0) -> None:

@@ -8,6 +8,7 @@ import mujoco
 import numpy as np
 import robosuite.utils.transform_utils as T
 from robosuite.environments.manipulation.manipulation_env import ManipulationEnv
+from robosuite.robots import ROBOT_CLASS_MAPPING
 from robosuite.utils.observables import Observable, sensor
 
 from veragmil_suite.controllers import load_scoop_controller_config
@@ -136,6 +137,11 @@ class ScoopGranular(ManipulationEnv):
         seed=None,
     ):
         self.food: FoodSpec = get_food(food)
+        for robot in [robots] if isinstance(robots, str) else list(robots):
+            if robot not in ROBOT_CLASS_MAPPING:
+                raise ValueError(
+                    f"Unknown robot {robot!r}; robosuite's robots: {', '.join(sorted(ROBOT_CLASS_MAPPING))}"
+                )
         if n_grains is not None and (not isinstance(n_grains, (int, np.integer)) or n_grains <= 0):
             raise ValueError(f"n_grains must be a positive integer or None (the food's default), got {n_grains!r}")
         self.n_grains = int(n_grains) if n_grains is not None else self.food.default_grains

@@ -61,7 +61,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--camera-size", type=int, nargs="+", default=[84], metavar="PX", help="height [width]")
     p.add_argument("--depth", action="store_true", help="also record <camera>_depth (metres)")
-    p.add_argument("--seed", type=int, default=0, help="attempt k runs with seed SEED + k (env and scripted expert)")
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=None,
+        help="attempt k runs with seed SEED + k (env and scripted expert); default 0, or when appending, the seed "
+        "after the file's last",
+    )
     p.add_argument(
         "--workers", type=int, default=1, help="scripted device: parallel recording processes (same file for any N)"
     )
@@ -449,18 +455,38 @@ def main(argv: list[str] | None = None) -> int:
     except recording.DatasetError as e:
         print(f"veragmil-collect: {e}", file=sys.stderr)
         return 2
+    last = max(writer.seeds_used, default=None)
+    if args.seed is None:
+        args.seed = 0 if last is None else last + 1
+    elif last is not None and args.seed <= last:
+        print(
+            f"veragmil-collect: {args.output} already holds attempts with seeds up to {last} (attempt k runs with "
+            f"seed SEED + k, and a seed gives the same episode again): --seed {args.seed} would repeat them; omit "
+            f"--seed to continue from {last + 1}, or pass a seed above {last}",
+            file=sys.stderr,
+        )
+        return 2
+    writer.provenance["env_seed"] = args.seed
 
-    env = operator = None
-    if args.workers > 1:
-        attempts_iter = parallel_attempts(args, env_kwargs)
-    else:
+    # the environment is built here in every case: a bad setting is refused before anything is recorded (nothing is
+    # written before the first episode), and with workers it settles the piles they then read from the disk cache
+    operator = None
+    try:
         env = robosuite.make(
             "ScoopGranular",
             **env_kwargs,
-            has_renderer=render,
+            has_renderer=render and args.workers == 1,
             render_camera=args.cameras[0] if args.cameras else "overhead",
             seed=args.seed,
         )
+    except ValueError as e:
+        print(f"veragmil-collect: {e}", file=sys.stderr)
+        return 2
+    if args.workers > 1:
+        env.close()
+        env = None
+        attempts_iter = parallel_attempts(args, env_kwargs)
+    else:
         operator = make_operator(args, env)
         recorder = recording.EpisodeRecorder(env)
         attempts_iter = local_attempts(env, recorder, operator, args, render, realtime=source == "human")

@@ -11,6 +11,7 @@ Tools for ScoopGranular demonstration files (robomimic's HDF5 schema, see veragm
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import os
 import sys
@@ -75,6 +76,7 @@ def dataset_summary(path: str | Path) -> dict:
             first = data[names[0]]
             obs_keys = {k: (list(d.shape[1:]), str(d.dtype)) for k, d in first.get("obs", {}).items()}
         masks = {k: len(f["mask"][k]) for k in f["mask"]} if "mask" in f else {}
+        duplicates = _duplicate_demos(data, names)
         attempts = json.loads(data.attrs.get("attempts", "[]"))
         provenance = {k: _plain(data.attrs[k]) for k in data.attrs if k not in _SUMMARY_ATTRS}
     known = [d for d in demos if d["success"] is not None]
@@ -120,9 +122,22 @@ def dataset_summary(path: str | Path) -> dict:
         per_food=per_food,
         obs_keys=obs_keys,
         filter_keys=masks,
+        duplicates=duplicates,
         provenance=provenance,
         demo_list=demos,
     )
+
+
+def _duplicate_demos(data, names: list[str]) -> list[list[str]]:
+    """Groups of demos with identical actions from the same start state (one episode recorded twice: the same
+    seed again). The first state stands for the rest: reading every state of a large file would take minutes."""
+    groups: dict[str, list[str]] = {}
+    for name in names:
+        digest = hashlib.sha256(np.ascontiguousarray(data[name]["actions"][()]).tobytes())
+        if "states" in data[name] and len(data[name]["states"]):
+            digest.update(np.ascontiguousarray(data[name]["states"][0]).tobytes())
+        groups.setdefault(digest.hexdigest(), []).append(name)
+    return [group for group in groups.values() if len(group) > 1]
 
 
 _SUMMARY_ATTRS = ("env_args", "attempts", "total", "foods", "devices", "operators", "merged_from")
@@ -173,6 +188,8 @@ def format_summary(s: dict, verbose: bool = False) -> str:
             f"  {r['mean_spilled_cm3']:>12.3f}  {t:>7}"
         )
     lines.append("  filter keys: " + ", ".join(f"{k} {v}" for k, v in sorted(s["filter_keys"].items())))
+    for group in s["duplicates"]:
+        lines.append(f"  DUPLICATES: {', '.join(group)} are the same episode (same start state and actions)")
     lines.append("  obs keys (per-step shape, dtype):")
     for key, (shape, dtype) in sorted(s["obs_keys"].items()):
         lines.append(f"    {key:<28}{str(tuple(shape)):<16}{dtype}")
