@@ -280,3 +280,79 @@ def test_a_non_finite_action_is_never_stored(tmp_path):
         recorder.step(np.zeros(6), label=np.array([np.inf, 0, 0, 0, 0, 0]))
     assert recorder.num_steps == 0
     env.close()
+
+
+WRITER_CHILD = textwrap.dedent(
+    """
+    import dataclasses, sys, time
+    sys.path.insert(0, {tests!r})
+    import h5py
+    import numpy as np
+    from recording_helpers import record_file, tiny_env_kwargs
+    from veragmil_suite.recording import DemoWriter, env_meta, provenance
+
+    kwargs = tiny_env_kwargs()
+    (episode,) = record_file({path!r}, episodes=1, steps=5, env_kwargs=kwargs)
+    long = lambda a: np.repeat(a, 400, axis=0)  # a 2000-step demo: a write long enough to be killed inside
+    episode = dataclasses.replace(
+        episode,
+        actions=long(episode.actions), states=long(episode.states), rewards=long(episode.rewards),
+        dones=long(episode.dones), obs={{k: long(v) for k, v in episode.obs.items()}},
+        next_obs={{k: long(v) for k, v in episode.next_obs.items()}},
+    )
+    writer = DemoWriter({path!r}, env_meta(kwargs), provenance("scripted", "x", kwargs["food"], "XArm7"))
+    create_dataset = h5py.Group.create_dataset
+
+    def announced(group, name, *args, **kwargs):  # a demo's first dataset: its write has begun
+        if name == "actions" and group.name.startswith("/incomplete"):
+            print("IN-WRITE", flush=True)
+        return create_dataset(group, name, *args, **kwargs)
+
+    flush = h5py.File.flush
+
+    def held(f):  # the demo's data is on disk, not yet moved into data/: the instant a kill leaves most behind
+        flush(f)
+        if "incomplete" in f:
+            print("FLUSHED", flush=True)
+            time.sleep(0.5)
+
+    h5py.Group.create_dataset = announced
+    h5py.File.flush = held
+    writer.write(episode)
+    while True:
+        writer.write(episode)
+    """
+)
+
+
+@pytest.mark.parametrize("moment", ["IN-WRITE", "FLUSHED"])
+def test_killed_while_writing_every_tool_sees_only_complete_demos(tmp_path, moment, capsys):
+    path = tmp_path / "killed.hdf5"
+    code = WRITER_CHILD.format(tests=os.path.dirname(__file__), path=str(path))
+    child = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        seen = 0
+        for line in child.stdout:
+            seen += moment in line
+            if seen == 2:  # inside the second long write
+                break
+        os.kill(child.pid, signal.SIGKILL)
+        child.wait(timeout=30)
+    finally:
+        if child.poll() is None:
+            child.kill()
+    with open_dataset(path) as f:  # every demo under data/ is complete (open_dataset checks each one)
+        names = list(f["data"].keys())
+        assert names and all(n.startswith("demo_") and n[5:].isdigit() for n in names)  # as robomimic parses them
+        lengths = [f["data"][n]["actions"].shape[0] for n in names]
+        assert lengths[:2] == [5, 2000] and set(lengths[1:]) == {2000}
+    capsys.readouterr()
+    assert info_main([str(path)]) == 0
+    shown = capsys.readouterr().out
+    with h5py.File(path, "r") as f:
+        left = "incomplete" in f
+    assert ("INTERRUPTED WRITES" in shown) == left
+    assert left or moment == "IN-WRITE"  # killed after the flush, the half-written demo is in the file
+    assert info_main([str(path), "--clean"]) == 0
+    with h5py.File(path, "r") as f:
+        assert "incomplete" not in f and sorted(f["data"].keys()) == sorted(names)

@@ -43,7 +43,10 @@ ROBOSUITE_ENV_TYPE = 1  # robomimic's EnvType.ROBOSUITE_TYPE
 WRITER = "veragmil_suite.recording"
 FORMAT_VERSION = 1
 DEMO_PREFIX = "demo_"
-_PENDING_PREFIX = "incomplete_"
+# a demo is written under this root group and moved into data/ once complete: robomimic, which lists data/, never
+# sees half a demo, whenever the writer is killed
+PENDING_GROUP = "incomplete"
+_PENDING_PREFIX = "incomplete_"  # where older versions kept a demo being written: in data/, under this prefix
 IMAGE_COMPRESSION = dict(compression="gzip", compression_opts=4, shuffle=True)
 # env_kwargs that must agree for demos to share a file: they fix the action and observation spaces
 COMPATIBLE_KWARGS = ("robots", "controller_configs", "control_freq", "camera_names", "camera_heights", "camera_widths")
@@ -426,9 +429,7 @@ class DemoWriter:
         if self.path.exists():
             with open_dataset(self.path, "a") as f:
                 self._check_appendable(f)
-                for name in list(f["data"].keys()):
-                    if name.startswith(_PENDING_PREFIX):
-                        del f["data"][name]  # an episode whose writing was interrupted
+                remove_interrupted_writes(f)
                 self.next_index = self._next_index(f)
                 self.seeds_used = seeds_used(f)
 
@@ -483,10 +484,10 @@ class DemoWriter:
             first = demo_names(f)[:1]
             if first:
                 self._check_same_obs(data[first[0]], episode)
-            pending = _PENDING_PREFIX + name
-            if pending in data:
-                del data[pending]
-            g = data.create_group(pending)
+            pending = f.require_group(PENDING_GROUP)
+            if name in pending:
+                del pending[name]
+            g = pending.create_group(name)
             g.create_dataset("actions", data=episode.actions)
             if episode.executed_actions is not None:
                 g.create_dataset("executed_actions", data=episode.executed_actions)
@@ -504,7 +505,8 @@ class DemoWriter:
                 g.attrs[key] = _attr(value)
             g.attrs["num_samples"] = episode.num_samples
             f.flush()
-            data.move(pending, name)  # the demo exists under its real name only once complete
+            f.move(f"{PENDING_GROUP}/{name}", f"data/{name}")  # in data/ only once complete
+            del f[PENDING_GROUP]
             self._log(data, dict(demo=name, kept=True, **episode.attrs, **episode.metrics))
             self._update_totals(f)
             f.flush()
@@ -534,6 +536,22 @@ class DemoWriter:
 
     def _update_totals(self, f: h5py.File) -> None:
         refresh_summary(f, self.valid_ratio)
+
+
+def interrupted_writes(f: h5py.File) -> list[str]:
+    """Demos whose writing was interrupted (the writer killed): never part of the dataset, safe to remove."""
+    pending = [f"{PENDING_GROUP}/{name}" for name in f[PENDING_GROUP]] if PENDING_GROUP in f else []
+    return pending + [f"data/{name}" for name in f["data"] if name.startswith(_PENDING_PREFIX)]
+
+
+def remove_interrupted_writes(f: h5py.File) -> list[str]:
+    """Delete what interrupted writes left (``interrupted_writes``); returns what was removed."""
+    removed = interrupted_writes(f)
+    for path in removed:
+        del f[path]
+    if PENDING_GROUP in f:
+        del f[PENDING_GROUP]
+    return removed
 
 
 def seeds_used(f: h5py.File) -> set[int]:

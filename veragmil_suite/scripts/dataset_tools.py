@@ -25,9 +25,11 @@ from veragmil_suite.recording import (
     COMPATIBLE_KWARGS,
     DatasetError,
     demo_names,
+    interrupted_writes,
     observe,
     open_dataset,
     refresh_summary,
+    remove_interrupted_writes,
     reset_to_demo,
     robomimic_obs,
     split_demos,
@@ -77,6 +79,7 @@ def dataset_summary(path: str | Path) -> dict:
             obs_keys = {k: (list(d.shape[1:]), str(d.dtype)) for k, d in first.get("obs", {}).items()}
         masks = {k: len(f["mask"][k]) for k in f["mask"]} if "mask" in f else {}
         duplicates = _duplicate_demos(data, names)
+        interrupted = interrupted_writes(f)
         attempts = json.loads(data.attrs.get("attempts", "[]"))
         provenance = {k: _plain(data.attrs[k]) for k in data.attrs if k not in _SUMMARY_ATTRS}
     known = [d for d in demos if d["success"] is not None]
@@ -123,6 +126,7 @@ def dataset_summary(path: str | Path) -> dict:
         obs_keys=obs_keys,
         filter_keys=masks,
         duplicates=duplicates,
+        interrupted_writes=interrupted,
         provenance=provenance,
         demo_list=demos,
     )
@@ -188,6 +192,11 @@ def format_summary(s: dict, verbose: bool = False) -> str:
             f"  {r['mean_spilled_cm3']:>12.3f}  {t:>7}"
         )
     lines.append("  filter keys: " + ", ".join(f"{k} {v}" for k, v in sorted(s["filter_keys"].items())))
+    if s["interrupted_writes"]:
+        lines.append(
+            f"  INTERRUPTED WRITES (not part of the dataset): {', '.join(s['interrupted_writes'])}; "
+            "veragmil-dataset-info --clean removes them"
+        )
     for group in s["duplicates"]:
         lines.append(f"  DUPLICATES: {', '.join(group)} are the same episode (same start state and actions)")
     lines.append("  obs keys (per-step shape, dtype):")
@@ -218,10 +227,15 @@ def info_main(argv: list[str] | None = None) -> int:
     p.add_argument("datasets", nargs="+", help="HDF5 files")
     p.add_argument("--verbose", "-v", action="store_true", help="one line per demo")
     p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.add_argument("--clean", action="store_true", help="remove what interrupted writes left (never a finished demo)")
     args = p.parse_args(argv)
     out = []
     for path in args.datasets:
         try:
+            if args.clean:
+                with open_dataset(path, "a") as f:
+                    removed = remove_interrupted_writes(f)
+                print(f"{path}: removed {', '.join(removed)}" if removed else f"{path}: nothing to clean")
             summary = dataset_summary(path)
         except DatasetError as e:
             return _fail("veragmil-dataset-info", e)
