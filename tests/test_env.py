@@ -1,5 +1,7 @@
 """ScoopGranular: builds for every food and robot, settles, scoops, counts spillage, checks success, replays."""
 
+import dataclasses
+
 import mujoco
 import numpy as np
 import pytest
@@ -9,9 +11,11 @@ from helpers_env import grain_positions, make_env
 
 from veragmil_suite import settling
 from veragmil_suite.controllers import load_scoop_controller_config
+from veragmil_suite.environments import scoop as scoop_module
 from veragmil_suite.environments.scoop import POST_SCOOP_EEF_ROT, PRE_SCOOP_EEF_ROT, SCOOP_STAGES, StageTracker
 from veragmil_suite.foods import FOODS
 from veragmil_suite.kinematics import solve_pose_ik
+from veragmil_suite.models.bowl import DEFAULT_BOWL_SHAPE
 from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
 
 ROBOTS = ["XArm7", "Panda", "Sawyer", "UR5e", "IIWA", "Kinova3", "Jaco"]
@@ -346,6 +350,40 @@ def test_a_damaged_pile_cache_is_settled_again_and_replaced(tmp_path, monkeypatc
     env.close()
     with np.load(cached) as f:  # and the entry replaced by a readable one
         assert f["grain_qpos"].shape == (12, 7)
+
+
+def test_a_deeper_bowl_gets_its_own_start_pose():
+    shallow = make_env("pasta", n_grains=12)
+    deep = make_env("pasta", n_grains=12, bowl_shape=dataclasses.replace(DEFAULT_BOWL_SHAPE, depth=0.06))
+    for env in (shallow, deep):  # the spoon starts above each bowl's own rim, not the first env's
+        obs = env.reset()
+        rim = env._nominal_rim_center()
+        np.testing.assert_allclose(obs["robot0_eef_pos"][2] - rim[2], env.pre_scoop_offset[2], atol=0.01)
+        env.close()
+    assert deep._nominal_rim_center()[2] != shallow._nominal_rim_center()[2]
+
+
+def test_loading_a_saved_state_places_and_settles_no_pile(monkeypatch):
+    env = make_env("pasta", n_grains=12)
+    env.reset()
+    xml, state = env.sim.model.get_xml(), env.sim.get_state().flatten()
+    calls = []
+    monkeypatch.setattr(scoop_module, "settle", lambda *a, **k: calls.append(a))
+    env.reset_from_xml_string(xml)
+    env.sim.set_state_from_flattened(state)
+    env.sim.forward()
+    assert calls == []  # the state overwrites the bowl and the pile: neither is placed nor settled first
+    env.close()
+
+
+def test_physics_solver_options_update_the_defaults_in_the_scene_too():
+    env = make_env("pasta", n_grains=12, physics_solver_options={"iterations": "50"})
+    env.reset()
+    opt = env.sim.model.opt
+    assert opt.iterations == 50  # the option given...
+    assert opt.solver == mujoco.mjtSolver.mjSOL_CG and opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC  # ...the rest kept
+    assert opt.impratio == 1.0
+    env.close()
 
 
 def test_overhead_camera_renders_rgb_and_depth():

@@ -315,9 +315,14 @@ class ScoopGranular(ManipulationEnv):
             mujoco_objects=self.bowl,
             grain_pile=self.grain_pile,
             grain_home_qpos=self.grain_pile.lattice_qpos(self.bowl_shape, self._nominal_rim_center()),
-            solver_options=self.physics_solver_options,
+            solver_options=self.solver_options,
             fast_rendering=self.fast_rendering,
         )
+
+    @property
+    def solver_options(self) -> dict:
+        """MuJoCo <option> attributes of the scene and of settling: the defaults, updated by physics_solver_options."""
+        return {**PILE_SOLVER_OPTIONS, **(self.physics_solver_options or {})}
 
     def _pile(self, variant: int) -> GrainPile:
         """Pile variant ``variant`` of this food and grain count (the same on every machine)."""
@@ -402,10 +407,11 @@ class ScoopGranular(ManipulationEnv):
         self._metrics_time = None
         self._success_time = None
         self._physics_error = ""
+        if self.deterministic_reset:
+            return  # a saved state is loaded next (reset_to, reset_from_xml_string): no bowl to place or pile to settle
 
         # Place the bowl and a settled pile (settled once, then moved rigidly: still settled)
-        option = {**PILE_SOLVER_OPTIONS, **(self.physics_solver_options or {})}
-        pile = settle(self.bowl, self.grain_pile, option, float(self.sim.model.opt.timestep))
+        pile = settle(self.bowl, self.grain_pile, self.solver_options, float(self.sim.model.opt.timestep))
         offset = np.array(
             [
                 self.bowl_nominal_xy[0] + self.rng.uniform(*self.bowl_x_range),
@@ -435,7 +441,16 @@ class ScoopGranular(ManipulationEnv):
     def _pre_scoop_qpos(self) -> np.ndarray:
         """Joint configuration that puts the spoon at its pre-scoop pose above the nominal bowl (cached)."""
         robot = self.robots[0]
-        key = (type(robot.robot_model).__name__, tuple(self.pre_scoop_offset), tuple(self.table_full_size))
+        # everything the pose depends on: the arm, what it holds, and where the bowl's rim is
+        key = (
+            type(robot.robot_model).__name__,
+            type(robot.gripper["right"]).__name__,
+            repr(self.bowl_shape),
+            tuple(self.pre_scoop_offset),
+            tuple(self.table_full_size),
+            tuple(np.round(self.table_offset, 9)),
+            tuple(np.round(self.bowl_nominal_xy, 9)),
+        )
         if key not in _PRE_SCOOP_CACHE:
             target_pos = self._nominal_rim_center() + self.pre_scoop_offset
             _PRE_SCOOP_CACHE[key] = solve_pose_ik(
