@@ -1,9 +1,11 @@
 """The VR server without a simulator: page serving, authentication, robustness counters, frames, TLS."""
 
+import asyncio
 import json
 import socket
 import ssl
 import subprocess
+import sys
 import time
 import urllib.error
 import urllib.request
@@ -264,3 +266,67 @@ def test_a_localhost_server_answers_only_to_localhost_names(server):
         sneaky.connect()  # DNS rebinding: same origin as far as the browser knows, refused all the same
     sneaky.close()
     assert server.stats()["forbidden_host"] == 2
+
+
+SERVER_CHILD = """
+import json, resource, sys
+resource.setrlimit(resource.RLIMIT_NOFILE, (1024, 1024))
+from veragmil_suite.devices.vr_server import VRServer
+server = VRServer(port=0, request_timeout=1.0, heartbeat_timeout=1.0).start()
+print(server.port, flush=True)
+sys.stdin.readline()
+print(json.dumps(server.stats()), flush=True)
+server.stop()
+"""
+
+
+def test_idle_and_half_open_clients_cannot_starve_the_operator():
+    """1,100 idle sockets against a server limited to 1,024 files: refused beyond its connection limit or closed
+    when idle, never "Too many open files"; the operator's page still connects; a silent client is dropped."""
+    child = subprocess.Popen(
+        [sys.executable, "-c", SERVER_CHILD], stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True,
+    )  # fmt: skip
+    sockets = []
+    try:
+        port = int(child.stdout.readline())
+        url = f"http://localhost:{port}/"
+        for _ in range(1100):
+            try:
+                sockets.append(socket.create_connection(("127.0.0.1", port), timeout=2))
+            except OSError:
+                pass  # refused under load: as good as closed
+        start = time.monotonic()
+        operator = None
+        while operator is None and time.monotonic() - start < 10:
+            try:
+                operator = Client(url).connect()
+            except Exception:
+                time.sleep(0.2)
+        assert operator is not None, "the page could not connect while idle sockets were held"
+        waited = time.monotonic() - start
+        operator.close()
+
+        async def silent_client():  # says hello, then never answers a ping: a half-open connection
+            async with aiohttp.ClientSession() as s:
+                async with s.ws_connect(f"ws://localhost:{port}/ws", autoping=False) as ws:
+                    await ws.send_str(json.dumps({"v": 1, "type": "hello"}))
+                    await asyncio.sleep(2.5)
+                    while (await ws.receive(timeout=5)).type not in (aiohttp.WSMsgType.CLOSED, aiohttp.WSMsgType.ERROR):
+                        pass
+                    return ws.closed
+
+        assert asyncio.run(silent_client())
+        child.stdin.write("stop\n")
+        child.stdin.flush()
+        stats = json.loads(child.stdout.readline())
+        _, err = child.communicate(timeout=30)
+    finally:
+        for s in sockets:
+            s.close()
+        if child.poll() is None:
+            child.kill()
+    assert waited < 5.0  # held up by the request timeout (1 s), not by the 1,100 sockets
+    assert stats["refused_busy"] + stats["idle_closed"] >= 1000
+    assert stats["idle_closed"] >= 1 and stats["heartbeat_timeouts"] >= 1
+    assert "Too many open files" not in err and "Traceback" not in err

@@ -53,6 +53,14 @@ TOKEN_ALPHABET = "ABCDEFGHJKLMNPQRSTUVWXYZ23456789"  # no 0/O, 1/I: typed on a h
 AUTH_MAX_FAILURES = 5
 AUTH_WINDOW_S = 60.0
 PING_INTERVAL_S = 1.0
+# open TCP connections at most (the page needs one WebSocket and a few HTTP fetches): beyond it a connection is
+# closed as soon as it is accepted, so idle sockets cannot use up the process's file descriptors
+MAX_CONNECTIONS = 32
+# seconds a new connection has to send its first bytes (or finish a TLS handshake) and an HTTP keep-alive may idle
+REQUEST_TIMEOUT_S = 10.0
+# seconds a WebSocket client may stay silent (it answers the server's pings every PING_INTERVAL_S) before the
+# connection is taken for half-open (Wi-Fi gone without a FIN) and dropped, so that a reconnection finds a free slot
+HEARTBEAT_TIMEOUT_S = 5.0
 _HOST_RE = re.compile(r"[A-Za-z0-9.\-\[\]:]+")  # a Host header fit to be echoed into the page's CSP
 
 # close codes in the application range (4000-4999)
@@ -77,11 +85,62 @@ COUNTERS = (
     "forbidden_origin",  # WebSocket opened from another site's page
     "forbidden_host",  # a localhost server asked under another name (DNS rebinding)
     "superseded",  # connections closed because a newer one authenticated
+    "refused_busy",  # TCP connections closed at once: MAX_CONNECTIONS were open
+    "idle_closed",  # TCP connections that sent nothing within the request timeout
+    "heartbeat_timeouts",  # WebSocket clients silent for the heartbeat timeout (half-open), dropped
     "frames_published",
     "frames_sent",
     "frames_skipped",
     "status_sent",
 )
+
+
+class _ConnectionGuard(asyncio.Protocol):
+    """aiohttp's protocol for one TCP connection, guarded: refused at once beyond the server's connection limit, and
+    closed when it sends nothing within the request timeout."""
+
+    def __init__(self, server: VRServer, inner: asyncio.Protocol):
+        self._server, self._inner = server, inner
+        self._timer: asyncio.TimerHandle | None = None
+        self._admitted = False
+
+    def connection_made(self, transport) -> None:
+        server = self._server
+        if server.open_connections >= server.max_connections:
+            server.count("refused_busy")
+            transport.abort()
+            return
+        server.open_connections += 1
+        self._admitted = True
+        self._timer = asyncio.get_running_loop().call_later(server.request_timeout, self._expire, transport)
+        self._inner.connection_made(transport)
+
+    def _expire(self, transport) -> None:
+        self._server.count("idle_closed")
+        transport.abort()
+
+    def data_received(self, data: bytes) -> None:
+        if self._timer is not None:
+            self._timer.cancel()
+            self._timer = None
+        self._inner.data_received(data)
+
+    def eof_received(self):
+        return self._inner.eof_received()
+
+    def pause_writing(self) -> None:
+        self._inner.pause_writing()
+
+    def resume_writing(self) -> None:
+        self._inner.resume_writing()
+
+    def connection_lost(self, exc) -> None:
+        if self._timer is not None:
+            self._timer.cancel()
+        if self._admitted:
+            self._admitted = False
+            self._server.open_connections -= 1
+            self._inner.connection_lost(exc)
 
 
 def is_loopback(host: str) -> bool:
@@ -127,6 +186,11 @@ class VRServer:
         status_hz (float): most status messages per second
         hello_timeout (float): seconds a new connection has to say hello
         auth_failure_delay (float): seconds a wrong token waits for its answer
+        max_connections (int): open TCP connections at most (MAX_CONNECTIONS)
+        request_timeout (float): seconds a connection has to send its first bytes or finish a TLS handshake; also
+            the HTTP keep-alive (REQUEST_TIMEOUT_S)
+        heartbeat_timeout (float): seconds of silence after which a WebSocket client is taken for gone
+            (HEARTBEAT_TIMEOUT_S)
     """
 
     def __init__(
@@ -146,6 +210,9 @@ class VRServer:
         hello_timeout: float = 5.0,
         auth_failure_delay: float = 0.5,
         web_dir: str | Path = WEB_DIR,
+        max_connections: int = MAX_CONNECTIONS,
+        request_timeout: float = REQUEST_TIMEOUT_S,
+        heartbeat_timeout: float = HEARTBEAT_TIMEOUT_S,
     ):
         self.host = host
         self.requested_port = port
@@ -161,6 +228,11 @@ class VRServer:
         self.hello_timeout = hello_timeout
         self.auth_failure_delay = auth_failure_delay
         self.web_dir = Path(web_dir)
+        self.max_connections = int(max_connections)
+        self.request_timeout = float(request_timeout)
+        self.heartbeat_timeout = float(heartbeat_timeout)
+        self.open_connections = 0  # TCP connections admitted and not yet closed (the server thread's)
+        self._tcp_server: asyncio.AbstractServer | None = None
         self.port: int | None = None
         self.fingerprint: str | None = None
 
@@ -251,11 +323,18 @@ class VRServer:
         app.router.add_get("/favicon.ico", self._no_icon)
         app.router.add_static("/static/", self.web_dir, show_index=False, follow_symlinks=False)
         app.on_response_prepare.append(self._headers)
-        self._runner = web.AppRunner(app, access_log=None, handle_signals=False)
+        self._runner = web.AppRunner(app, access_log=None, handle_signals=False, keepalive_timeout=self.request_timeout)
         await self._runner.setup()
-        site = web.TCPSite(self._runner, self.host, self.requested_port, ssl_context=ssl_context, reuse_address=True)
-        await site.start()
-        self.port = self._runner.addresses[0][1]
+        handler_factory = self._runner.server  # aiohttp's per-connection protocol factory, behind our guard
+        self._tcp_server = await asyncio.get_running_loop().create_server(
+            lambda: _ConnectionGuard(self, handler_factory()),
+            self.host,
+            self.requested_port,
+            ssl=ssl_context,
+            ssl_handshake_timeout=self.request_timeout if ssl_context is not None else None,
+            reuse_address=True,
+        )
+        self.port = self._tcp_server.sockets[0].getsockname()[1]
 
     async def _shutdown(self, farewell: str | None = None) -> None:
         if self._client is not None and not self._client.closed:
@@ -267,6 +346,8 @@ class VRServer:
                 except ConnectionError:
                     pass  # the page is gone already; it reconnects to nothing and says so
                 await self._client.close(code=CLOSE_FINISHED, message=b"finished")
+        if self._tcp_server is not None:
+            self._tcp_server.close()
         if self._runner is not None:
             await self._runner.cleanup()
 
@@ -395,10 +476,11 @@ class VRServer:
         await ws.send_str(server_message("welcome", connection=cid, config=self.config))
         if self.on_connect is not None:
             self._call(self.on_connect, cid)
-        sender = asyncio.create_task(self._send_loop(ws))
-        order = {"seq": -1, "t": float("-inf")}
+        order = {"seq": -1, "t": float("-inf"), "heard": time.monotonic()}
+        sender = asyncio.create_task(self._send_loop(ws, order, request.transport))
         try:
             async for msg in ws:
+                order["heard"] = time.monotonic()
                 if msg.type == WSMsgType.TEXT:
                     self._handle_text(msg.data, order)
                 elif msg.type == WSMsgType.BINARY:
@@ -477,8 +559,9 @@ class VRServer:
             self.count("handler_errors")
             LOG.exception("VR handler raised; the message was dropped")
 
-    async def _send_loop(self, ws: web.WebSocketResponse) -> None:
-        """Send the newest frame and status whenever there is one, and a ping every second."""
+    async def _send_loop(self, ws: web.WebSocketResponse, order: dict, transport) -> None:
+        """Send the newest frame and status whenever there is one, and a ping every second; drop a client silent
+        for the heartbeat timeout (``order["heard"]``: when it last sent anything)."""
         with self._publish_lock:
             published_before = self._frame[0] if self._frame else 0
         last_frame = 0  # the newest frame goes out at once
@@ -502,6 +585,11 @@ class VRServer:
                     await ws.send_bytes(frame[1])
                     self.count("frames_sent")
                 now = time.monotonic()
+                if now - order["heard"] > self.heartbeat_timeout:
+                    self.count("heartbeat_timeouts")
+                    if transport is not None:
+                        transport.abort()  # half-open: no close handshake would ever be answered
+                    return
                 if status is not None and status[0] != last_status and now - last_status_time >= self.status_interval:
                     last_status, last_status_time = status[0], now
                     await ws.send_str(status[1])
