@@ -323,6 +323,8 @@ def open_dataset(path: str | Path, mode: str = "r") -> h5py.File:
         DatasetError: [missing file, not HDF5 or corrupt, not a robomimic dataset, another env, a damaged demo]
     """
     path = Path(path)
+    if path.is_dir():
+        raise DatasetError(f"{path}: is a directory, not a dataset file")
     if not path.is_file():
         raise DatasetError(f"{path}: no such file")
     try:

@@ -24,6 +24,8 @@ from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
 from veragmil_suite.settling import settle
 
 M3_PER_CM3 = 1e-6
+# the largest grain count accepted, as a multiple of the food's default (veragmil_suite.bench times 1x, 2x and 4x)
+MAX_GRAINS_PER_DEFAULT = 4
 
 # Spoon orientations in the world, as rotation matrices of the flange (eef) frame. Pre-scoop: the tool points
 # straight down, so the bent spoon's tip points down at 45 degrees along +x (away from the robot), its bowl
@@ -145,6 +147,12 @@ class ScoopGranular(ManipulationEnv):
         if n_grains is not None and (not isinstance(n_grains, (int, np.integer)) or n_grains <= 0):
             raise ValueError(f"n_grains must be a positive integer or None (the food's default), got {n_grains!r}")
         self.n_grains = int(n_grains) if n_grains is not None else self.food.default_grains
+        limit = MAX_GRAINS_PER_DEFAULT * self.food.default_grains
+        if self.n_grains > limit:
+            raise ValueError(
+                f"n_grains {self.n_grains} is more than a bowl of {self.food.name} settles in reasonable time: at most "
+                f"{limit} ({MAX_GRAINS_PER_DEFAULT}x its default of {self.food.default_grains})"
+            )
         if int(pile_variants) < 1:
             raise ValueError(f"pile_variants must be at least 1, got {pile_variants!r}")
         self.pile_variants = int(pile_variants)

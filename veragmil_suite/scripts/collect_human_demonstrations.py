@@ -29,6 +29,8 @@ import time
 
 import numpy as np
 
+from veragmil_suite.scripts.cli import port, positive_int
+
 DEVICES = ("keyboard", "spacemouse", "vr", "scripted")
 KEEP_POLICIES = ("ask", "all", "success")
 
@@ -54,12 +56,12 @@ def build_parser() -> argparse.ArgumentParser:
         "device and the expert send OSC_POSE deltas (robosuite's devices support no IK_POSE)",
     )
     p.add_argument("--control-freq", type=int, default=20, help="control rate, Hz (the paper's VR runs at 60)")
-    p.add_argument("--horizon", type=int, default=400, help="longest episode, control steps")
-    p.add_argument("--n-grains", type=int, default=None, help="grains in the bowl (default: the food's own)")
+    p.add_argument("--horizon", type=positive_int, default=400, help="longest episode, control steps")
+    p.add_argument("--n-grains", type=positive_int, default=None, help="grains in the bowl (default: the food's own)")
     p.add_argument(
         "--cameras", nargs="*", default=["overhead"], help="cameras recorded as <name>_image; none: low-dim only"
     )
-    p.add_argument("--camera-size", type=int, nargs="+", default=[84], metavar="PX", help="height [width]")
+    p.add_argument("--camera-size", type=positive_int, nargs="+", default=[84], metavar="PX", help="height [width]")
     p.add_argument("--depth", action="store_true", help="also record <camera>_depth (metres)")
     p.add_argument(
         "--seed",
@@ -69,7 +71,10 @@ def build_parser() -> argparse.ArgumentParser:
         "after the file's last",
     )
     p.add_argument(
-        "--workers", type=int, default=1, help="scripted device: parallel recording processes (same file for any N)"
+        "--workers",
+        type=positive_int,
+        default=1,
+        help="scripted device: parallel recording processes (same file for any N)",
     )
     p.add_argument(
         "--keep",
@@ -92,7 +97,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--pos-sensitivity", type=float, default=1.0, help="keyboard / spacemouse / vr translation scale")
     p.add_argument("--rot-sensitivity", type=float, default=1.0, help="keyboard / spacemouse / vr rotation scale")
     p.add_argument("--vr-host", default="127.0.0.1", help="VR server address (0.0.0.0 for a Wi-Fi headset)")
-    p.add_argument("--vr-port", type=int, default=8765)
+    p.add_argument("--vr-port", type=port, default=8765)
     p.add_argument(
         "--vr-allow-emulated",
         action="store_true",

@@ -35,6 +35,7 @@ from veragmil_suite.recording import (
     split_demos,
     write_masks,
 )
+from veragmil_suite.scripts.cli import positive_int
 
 
 def _fail(tool: str, error: Exception) -> int:
@@ -535,11 +536,11 @@ def replay_main(argv: list[str] | None = None) -> int:
     p.add_argument("dataset", help="HDF5 file")
     p.add_argument("--output", "-o", default=None, help="mp4 to write (all selected demos in sequence)")
     p.add_argument("--demos", nargs="+", default=None, help="demo names (default: all)")
-    p.add_argument("--n", type=int, default=None, help="only the first N selected demos")
+    p.add_argument("--n", type=positive_int, default=None, help="only the first N selected demos")
     p.add_argument("--camera", default="agentview", help="camera to render (overhead, agentview, frontview, ...)")
-    p.add_argument("--size", type=int, nargs="+", default=[480, 640], metavar="PX", help="height [width]")
+    p.add_argument("--size", type=positive_int, nargs="+", default=[480, 640], metavar="PX", help="height [width]")
     p.add_argument("--fps", type=float, default=None, help="video frame rate (default: real time)")
-    p.add_argument("--skip", type=int, default=1, help="render every k-th step")
+    p.add_argument("--skip", type=positive_int, default=1, help="render every k-th step")
     p.add_argument("--use-actions", action="store_true", help="replay actions open loop and report the state error")
     args = p.parse_args(argv)
     if args.output is None and not args.use_actions:
@@ -683,7 +684,7 @@ def render_obs_main(argv: list[str] | None = None) -> int:
     p.add_argument("dataset", help="HDF5 file")
     p.add_argument("--output", "-o", required=True, help="new HDF5 file")
     p.add_argument("--cameras", nargs="+", default=["overhead"], help="cameras to render")
-    p.add_argument("--size", type=int, nargs="+", default=[84], metavar="PX", help="height [width]")
+    p.add_argument("--size", type=positive_int, nargs="+", default=[84], metavar="PX", help="height [width]")
     p.add_argument("--depth", action="store_true", help="also render <camera>_depth")
     p.add_argument("--demos", nargs="+", default=None, help="only these demos")
     p.add_argument("--force", action="store_true", help="overwrite --output")

@@ -12,10 +12,12 @@ is the mean over successful episodes ("-" when none succeeded); failures' episod
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import sys
 
 from veragmil_suite.evaluation import ALL_FOODS, DEFAULT_VIDEO_CAMERA, SPEC_HELP, evaluate, parse_agent_argument
+from veragmil_suite.scripts.cli import positive_int
 
 
 def _env_kwargs(text: str) -> dict:
@@ -25,13 +27,14 @@ def _env_kwargs(text: str) -> dict:
         raise argparse.ArgumentTypeError(f"not JSON: {e}") from e
     if not isinstance(value, dict):
         raise argparse.ArgumentTypeError("must be a JSON object of robosuite.make keyword arguments")
-    return value
+    from veragmil_suite.environments.scoop import ScoopGranular
 
-
-def _positive(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {value}")
+    accepted = [name for name in inspect.signature(ScoopGranular.__init__).parameters if name != "self"]
+    unknown = sorted(set(value) - set(accepted))
+    if unknown:
+        raise argparse.ArgumentTypeError(
+            f"unknown ScoopGranular argument(s) {', '.join(unknown)}; accepted: {', '.join(accepted)}"
+        )
     return value
 
 
@@ -57,11 +60,11 @@ def build_parser() -> argparse.ArgumentParser:
         help=f"an agent column (repeat for more): SPEC is {SPEC_HELP}; without NAME= it is named after SPEC",
     )
     p.add_argument("--foods", nargs="+", default=list(ALL_FOODS), help=f"foods (default: all, {' '.join(ALL_FOODS)})")
-    p.add_argument("--episodes", type=_positive, default=10, help="episodes per agent and food (default 10)")
-    p.add_argument("--processes", type=_positive, default=2, help="parallel worker processes (default 2)")
+    p.add_argument("--episodes", type=positive_int, default=10, help="episodes per agent and food (default 10)")
+    p.add_argument("--processes", type=positive_int, default=2, help="parallel worker processes (default 2)")
     p.add_argument("--output-dir", required=True, help="folder for the tables, plot, episodes and videos")
     p.add_argument("--seed", type=int, default=0, help="episode i runs with env seed SEED + i (default 0)")
-    p.add_argument("--horizon", type=_positive, default=None, help="steps per episode (default: the env's)")
+    p.add_argument("--horizon", type=positive_int, default=None, help="steps per episode (default: the env's)")
     p.add_argument("--videos", type=_non_negative, default=0, help="save the first K episodes per agent and food")
     p.add_argument("--video-camera", default=DEFAULT_VIDEO_CAMERA, help="camera of the videos (default overhead)")
     p.add_argument(

@@ -15,8 +15,10 @@ from __future__ import annotations
 import ast
 import importlib
 import inspect
+import json
 import sys
 from collections.abc import Callable
+from pathlib import Path
 
 from veragmil_suite import robomimic_compat
 
@@ -26,6 +28,14 @@ SCRIPTS = {
     "dataset-info": "robomimic.scripts.get_dataset_info",
     "playback": "robomimic.scripts.playback_dataset",
     "states-to-obs": "robomimic.scripts.dataset_states_to_obs",
+}
+# per script: its console name, and the options whose value must be an existing file
+FILE_OPTIONS = {
+    "robomimic.scripts.train": ("veragmil-train", ("--config", "--dataset")),
+    "robomimic.scripts.run_trained_agent": ("veragmil-run-agent", ("--agent",)),
+    "robomimic.scripts.get_dataset_info": ("veragmil-robomimic-dataset-info", ("--dataset",)),
+    "robomimic.scripts.playback_dataset": ("veragmil-robomimic-playback", ("--dataset",)),
+    "robomimic.scripts.dataset_states_to_obs": ("veragmil-robomimic-states-to-obs", ("--dataset",)),
 }
 
 
@@ -47,6 +57,25 @@ def _main_block(module) -> object:
     raise RuntimeError(f"{path} has no __main__ block to run")
 
 
+def _bad_file_arguments(program: str, argv: list[str], options: tuple[str, ...]) -> str | None:
+    """One line naming the first of ``options`` in ``argv`` whose file is missing or unreadable, else None: caught
+    before robomimic's script would fail on it with a traceback."""
+    for i, arg in enumerate(argv[:-1]):
+        if arg not in options:
+            continue
+        path = Path(argv[i + 1])
+        if path.is_dir():
+            return f"{program}: {arg} {path}: is a directory, not a file"
+        if not path.is_file():
+            return f"{program}: {arg} {path}: no such file"
+        if path.suffix == ".json":
+            try:
+                json.loads(path.read_text())
+            except (ValueError, UnicodeDecodeError) as e:
+                return f"{program}: {arg} {path}: not JSON ({e})"
+    return None
+
+
 def run_script(module_name: str, argv: list[str] | None = None, prepare: Callable | None = None) -> int:
     """
     Runs one robomimic script as its command line would, and returns the process exit code.
@@ -57,12 +86,18 @@ def run_script(module_name: str, argv: list[str] | None = None, prepare: Callabl
         prepare: called with the imported script module before it runs; returns an object whose ``failed``
             tells whether a run that returned normally failed anyway
     """
+    args = sys.argv[1:] if argv is None else list(argv)
+    program, options = FILE_OPTIONS.get(module_name, ("veragmil", ()))
+    problem = _bad_file_arguments(program, args, options)
+    if problem is not None:
+        print(problem, file=sys.stderr)
+        return 2
     robomimic_compat.install()
     module = importlib.import_module(module_name)
     outcome = prepare(module) if prepare is not None else None
     code = _main_block(module)
     saved_argv = sys.argv
-    sys.argv = [module.__file__, *(sys.argv[1:] if argv is None else argv)]
+    sys.argv = [module.__file__, *args]
     try:
         with robomimic_compat.no_prompts():
             exec(code, module.__dict__)

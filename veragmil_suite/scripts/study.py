@@ -22,6 +22,7 @@ import time
 
 from veragmil_suite.foods import FOODS, TRAINING_FOODS, UNSEEN_FOODS
 from veragmil_suite.pipeline import ALGO_CONFIGS, PipelineSettings, StageError, run_pipeline
+from veragmil_suite.scripts.cli import positive_int
 
 
 def add_pipeline_arguments(p: argparse.ArgumentParser, defaults: PipelineSettings) -> None:
@@ -40,26 +41,30 @@ def add_pipeline_arguments(p: argparse.ArgumentParser, defaults: PipelineSetting
     p.add_argument("--eval-foods", nargs="+", choices=sorted(FOODS), default=defaults.eval_foods)
     p.add_argument(
         "--demos-per-food",
-        type=int,
+        type=positive_int,
         nargs="+",
         default=defaults.demos_per_food,
         help="the paper: 30; several values train one model each (a learning curve over data)",
     )
-    p.add_argument("--epochs", type=int, default=defaults.epochs, help="the configs' own: 2000")
-    p.add_argument("--steps-per-epoch", type=int, default=defaults.steps_per_epoch, help="gradient steps per epoch")
+    p.add_argument("--epochs", type=positive_int, default=defaults.epochs, help="the configs' own: 2000")
+    p.add_argument(
+        "--steps-per-epoch", type=positive_int, default=defaults.steps_per_epoch, help="gradient steps per epoch"
+    )
     p.add_argument(
         "--eval-steps",
-        type=int,
+        type=positive_int,
         nargs="+",
         default=None,
         help="evaluate the checkpoints at these gradient steps (a learning curve; default: the last only)",
     )
-    p.add_argument("--episodes", type=int, default=defaults.episodes, help="evaluation episodes per food and model")
     p.add_argument(
-        "--processes", type=int, default=defaults.processes, help="parallel recording and evaluation processes"
+        "--episodes", type=positive_int, default=defaults.episodes, help="evaluation episodes per food and model"
     )
-    p.add_argument("--horizon", type=int, default=defaults.horizon, help="longest episode, control steps")
-    p.add_argument("--n-grains", type=int, default=None, help="grains in the bowl (default: each food's own)")
+    p.add_argument(
+        "--processes", type=positive_int, default=defaults.processes, help="parallel recording and evaluation processes"
+    )
+    p.add_argument("--horizon", type=positive_int, default=defaults.horizon, help="longest episode, control steps")
+    p.add_argument("--n-grains", type=positive_int, default=None, help="grains in the bowl (default: each food's own)")
     p.add_argument("--seed", type=int, default=defaults.seed)
 
 
