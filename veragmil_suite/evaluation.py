@@ -621,7 +621,8 @@ def plot_success(summary: dict, agents: list[str], foods: list[str], path: str) 
         entries = [summary.get((agent, f)) for f in foods]
         rates = np.array([100 * e["success_rate"] if e else 0.0 for e in entries])
         bounds = np.array([100 * np.array(e["success_ci95"]) if e else (0.0, 0.0) for e in entries])
-        errors = np.stack([rates - bounds[:, 0], bounds[:, 1] - rates])
+        # clipped: an interval's end at 0 or 100 can miss the rate by a rounding error, and matplotlib refuses < 0
+        errors = np.clip(np.stack([rates - bounds[:, 0], bounds[:, 1] - rates]), 0.0, None)
         ax.bar(x + (i - (len(agents) - 1) / 2) * width, rates, width, label=agent, yerr=errors, capsize=2)
     ax.set_xticks(x, [f if f in TRAINING_FOODS else f"{f}\n(unseen)" for f in foods])
     ax.set_ylabel("success (%, 95% CI)")
