@@ -63,9 +63,20 @@ def test_every_console_program_has_cases():
 
 @pytest.mark.parametrize("program,args,message", CASES, ids=[f"{c[0]}-{i}" for i, c in enumerate(CASES)])
 def test_bad_input_gets_one_clear_line(program, args, message, tmp_path, capsys):
-    for handler in logging.getLogger("robosuite_logs").handlers:  # robosuite's log, into this test's stderr
-        if isinstance(handler, logging.StreamHandler):
-            handler.stream = sys.stderr  # (setStream would flush the last test's closed one)
+    # robosuite's log into this test's captured stderr, and back afterwards (a handler left on a closed capture
+    # stream would print "--- Logging error ---" tracebacks into later tests)
+    handlers = [h for h in logging.getLogger("robosuite_logs").handlers if isinstance(h, logging.StreamHandler)]
+    streams = [h.stream for h in handlers]
+    for handler in handlers:
+        handler.stream = sys.stderr
+    try:
+        _check_one_clear_line(program, args, message, tmp_path, capsys)
+    finally:
+        for handler, stream in zip(handlers, streams):
+            handler.stream = stream
+
+
+def _check_one_clear_line(program, args, message, tmp_path, capsys):
     (tmp_path / "bad.json").write_text("{not json")
     before = set(tmp_path.rglob("*"))
     missing = tmp_path / "missing.hdf5"

@@ -62,7 +62,7 @@ def test_bad_settings_name_the_accepted_values(tmp_path):
     result = _run("veragmil-study", "--output-dir", tmp_path / "s", "--algos", "gail", timeout=60)
     assert result.returncode == 2 and "invalid choice: 'gail'" in result.stderr
     result = _run("veragmil-quickstart", "--output-dir", tmp_path / "q", "--episodes", "0", timeout=60)
-    assert result.returncode == 2 and "episodes must be a positive integer" in result.stderr
+    assert result.returncode == 2 and "argument --episodes: must be a positive integer, got 0" in result.stderr
     assert not (tmp_path / "q").exists() and not (tmp_path / "s").exists()
 
 
