@@ -54,10 +54,12 @@ def load_scoop_controller_config(controller: str = "OSC_POSE", robot: str = "XAr
     part = load_part_controller_config(default_controller=controller)
     if controller == "OSC_POSE":
         # stiffer, and the output range shrunk so that an action still means the speed it means with robosuite's
-        # defaults (devices keep their feel, and a policy's actions their size); damping stays critical
+        # defaults (devices keep their feel, and a policy's actions their size); the damping ratio is robosuite's,
+        # which sets kd = 2 sqrt(kp) * damping_ratio
         period = 1.0 / ROBOSUITE_CONTROL_FREQ_HZ
-        gain = osc_speed_per_offset(OSC_KP, 2.0 * np.sqrt(OSC_KP), period)
-        stock_gain = osc_speed_per_offset(part["kp"], 2.0 * np.sqrt(part["kp"]), period)
+        ratio = float(part["damping_ratio"])
+        gain = osc_speed_per_offset(OSC_KP, 2.0 * np.sqrt(OSC_KP) * ratio, period)
+        stock_gain = osc_speed_per_offset(part["kp"], 2.0 * np.sqrt(part["kp"]) * ratio, period)
         part["kp"] = OSC_KP
         part["output_max"] = [float(v * stock_gain / gain) for v in part["output_max"]]
         part["output_min"] = [float(v * stock_gain / gain) for v in part["output_min"]]

@@ -17,7 +17,7 @@ import json
 import sys
 
 from veragmil_suite.evaluation import ALL_FOODS, DEFAULT_VIDEO_CAMERA, SPEC_HELP, evaluate, parse_agent_argument
-from veragmil_suite.scripts.cli import positive_int
+from veragmil_suite.scripts.cli import non_negative_int, positive_int
 
 
 def _env_kwargs(text: str) -> dict:
@@ -35,13 +35,6 @@ def _env_kwargs(text: str) -> dict:
         raise argparse.ArgumentTypeError(
             f"unknown ScoopGranular argument(s) {', '.join(unknown)}; accepted: {', '.join(accepted)}"
         )
-    return value
-
-
-def _non_negative(text: str) -> int:
-    value = int(text)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be a non-negative integer, got {value}")
     return value
 
 
@@ -65,7 +58,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--output-dir", required=True, help="folder for the tables, plot, episodes and videos")
     p.add_argument("--seed", type=int, default=0, help="episode i runs with env seed SEED + i (default 0)")
     p.add_argument("--horizon", type=positive_int, default=None, help="steps per episode (default: the env's)")
-    p.add_argument("--videos", type=_non_negative, default=0, help="save the first K episodes per agent and food")
+    p.add_argument("--videos", type=non_negative_int, default=0, help="save the first K episodes per agent and food")
     p.add_argument("--video-camera", default=DEFAULT_VIDEO_CAMERA, help="camera of the videos (default overhead)")
     p.add_argument(
         "--env-kwargs",
