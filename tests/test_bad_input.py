@@ -52,6 +52,7 @@ CASES = [
     ("veragmil-study", ["--output-dir", "{tmp}/s", "--episodes", "0"], "argument --episodes: must be a positive"),
     ("veragmil-study", ["--output-dir", "{tmp}/s", "--demos-per-food", "0"], "argument --demos-per-food: must be"),
     ("veragmil-quickstart", ["--episodes", "0"], "argument --episodes: must be a positive"),
+    ("veragmil-study", ["--output-dir", "{tmp}/s", "--agent", "old=nowhere.pth"], "checkpoint 'nowhere.pth' not found"),
     ("veragmil-bench", ["--foods", "caviar"], "caviar"),
 ]  # fmt: skip
 

@@ -59,6 +59,11 @@ def test_bad_settings_name_the_accepted_values(tmp_path):
         PipelineSettings(output_dir=str(tmp_path), eval_steps=[150, 200])
     with pytest.raises(ValueError, match="demos_per_food must be positive"):
         PipelineSettings(output_dir=str(tmp_path), demos_per_food=[0, 3])
+    with pytest.raises(ValueError, match="checkpoint 'nowhere.pth' not found"):
+        PipelineSettings(output_dir=str(tmp_path), agents={"old": "nowhere.pth"})
+    with pytest.raises(ValueError, match="agent name 'expert BC' is taken by one of this run's own"):
+        PipelineSettings(output_dir=str(tmp_path), agents={"expert BC": "expert:careful"})
+    assert PipelineSettings(output_dir=str(tmp_path), agents={"careful": "expert:careful"}).agents
     result = _run("veragmil-study", "--output-dir", tmp_path / "s", "--algos", "gail", timeout=60)
     assert result.returncode == 2 and "invalid choice: 'gail'" in result.stderr
     result = _run("veragmil-quickstart", "--output-dir", tmp_path / "q", "--episodes", "0", timeout=60)

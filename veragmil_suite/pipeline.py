@@ -55,6 +55,8 @@ class PipelineSettings:
     ``demos_per_food`` and ``eval_steps`` may list several values (learning curves): each demo count trains its
     own model on the first N demos of each food, and each model is evaluated at every step count of
     ``eval_steps`` (gradient steps, multiples of ``steps_per_epoch``; by default only at the end of training).
+    ``agents`` (name -> agent SPEC of veragmil_suite.evaluation) are evaluated beside the run's own, on the same
+    bowls: a pretrained checkpoint, another operator profile, a recorded dataset.
     """
 
     output_dir: str
@@ -72,6 +74,7 @@ class PipelineSettings:
     horizon: int = 400
     n_grains: int | None = None
     score_demonstrators: bool = True
+    agents: dict[str, str] = field(default_factory=dict)
 
     def __post_init__(self):
         for food in [*self.train_foods, *self.eval_foods]:
@@ -100,10 +103,38 @@ class PipelineSettings:
                 f"({self.steps_per_epoch}) up to epochs x steps_per_epoch ({total})"
             )
         self.eval_steps = steps
+        from veragmil_suite.evaluation import parse_spec
+
+        own = set(self.own_agents())
+        for name, spec in self.agents.items():
+            parse_spec(spec)  # a ValueError naming the accepted forms
+            if name in own:
+                raise ValueError(
+                    f"agent name {name!r} is taken by one of this run's own; name it otherwise (NAME=SPEC)"
+                )
 
     @property
     def total_steps(self) -> int:
         return self.epochs * self.steps_per_epoch
+
+    def model_label(self, profile: str, algo: str, demos_per_food: int, steps: int) -> str:
+        """A trained checkpoint's column: profile and algorithm, plus demos and steps when the run sweeps them."""
+        label = f"{profile} {ALGO_LABELS[algo]}"
+        label += f" {demos_per_food} demos" if len(self.demos_per_food) > 1 else ""
+        label += f" {_steps_label(steps)} steps" if len(self.eval_steps) > 1 else ""
+        return label
+
+    def own_agents(self) -> list[str]:
+        """The columns this run makes itself: each profile's operator (when scored) and each checkpoint."""
+        names = [f"{p} operator" for p in self.profiles] if self.score_demonstrators else []
+        for profile in self.profiles:
+            names += [
+                self.model_label(profile, algo, n, k)
+                for algo in self.algos
+                for n in self.demos_per_food
+                for k in self.eval_steps
+            ]
+        return names
 
 
 def _run_logged(command: list[str], log_path: Path, what: str) -> float:
@@ -445,12 +476,11 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True):
                 checkpoints, seconds = train_checkpoint(config, out / "runs", say=say)
                 note(f"train {name}", seconds)
                 for k in settings.eval_steps:
-                    label = f"{profile} {ALGO_LABELS[algo]}"
-                    label += f" {n} demos" if sweep_demos else ""
-                    label += f" {_steps_label(k)} steps" if sweep_steps else ""
+                    label = settings.model_label(profile, algo, n, k)
                     agents[label] = str(checkpoints[k // settings.steps_per_epoch])
                     points.append(dict(agent=label, profile=profile, algo=algo, demos_per_food=n, steps=k))
 
+    agents.update(settings.agents)
     say(f"evaluating {len(agents)} agents x {settings.episodes} episodes on {settings.eval_foods}")
     env_kwargs = {"n_grains": settings.n_grains} if settings.n_grains is not None else None
     start = time.perf_counter()

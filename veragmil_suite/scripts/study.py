@@ -20,6 +20,7 @@ import os
 import sys
 import time
 
+from veragmil_suite.evaluation import SPEC_HELP, parse_agent_argument
 from veragmil_suite.foods import FOODS, TRAINING_FOODS, UNSEEN_FOODS
 from veragmil_suite.pipeline import ALGO_CONFIGS, PipelineSettings, StageError, run_pipeline
 from veragmil_suite.scripts.cli import positive_int
@@ -34,7 +35,7 @@ def add_pipeline_arguments(p: argparse.ArgumentParser, defaults: PipelineSetting
         default=argparse.SUPPRESS,
         help=f"where data, runs and tables go; an existing one is resumed (default: {defaults.output_dir}/<date-time>)",
     )
-    p.set_defaults(output_base=defaults.output_dir)
+    p.set_defaults(output_base=defaults.output_dir, default_agents=defaults.agents)
     p.add_argument("--profiles", nargs="+", choices=sorted(PROFILES), default=defaults.profiles)
     p.add_argument("--algos", nargs="+", choices=sorted(ALGO_CONFIGS), default=defaults.algos)
     p.add_argument("--train-foods", nargs="+", choices=sorted(FOODS), default=defaults.train_foods)
@@ -66,6 +67,13 @@ def add_pipeline_arguments(p: argparse.ArgumentParser, defaults: PipelineSetting
     p.add_argument("--horizon", type=positive_int, default=defaults.horizon, help="longest episode, control steps")
     p.add_argument("--n-grains", type=positive_int, default=None, help="grains in the bowl (default: each food's own)")
     p.add_argument("--seed", type=int, default=defaults.seed)
+    p.add_argument(
+        "--agent",
+        action="append",
+        metavar="[NAME=]SPEC",
+        default=None,
+        help=f"also evaluate this agent beside the run's own (repeat for more): SPEC is {SPEC_HELP}",
+    )
 
 
 def settings_from_args(args: argparse.Namespace) -> PipelineSettings:
@@ -84,7 +92,21 @@ def settings_from_args(args: argparse.Namespace) -> PipelineSettings:
         horizon=args.horizon,
         n_grains=args.n_grains,
         seed=args.seed,
+        agents=agent_columns(args.agent, defaults=getattr(args, "default_agents", {})),
     )
+
+
+def agent_columns(texts: list[str] | None, defaults: dict[str, str]) -> dict[str, str]:
+    """``--agent`` values as name -> SPEC (``defaults`` when none is given); ValueError for a bad or repeated one."""
+    if texts is None:
+        return dict(defaults)
+    agents: dict[str, str] = {}
+    for text in texts:
+        name, spec = parse_agent_argument(text)
+        if name in agents:
+            raise ValueError(f"two agents are named {name!r}: give each a NAME= of its own")
+        agents[name] = spec
+    return agents
 
 
 def run(parser: argparse.ArgumentParser, argv: list[str] | None) -> int:
