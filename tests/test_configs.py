@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 import robomimic
 
-from veragmil_suite import robomimic_compat
+from veragmil_suite import robomimic_compat, robomimic_obs
 
 CONFIG_DIR = Path(__file__).resolve().parents[1] / "configs" / "json"
 TEMPLATE_DIR = Path(robomimic.__file__).parent / "exps" / "templates"
@@ -102,7 +102,7 @@ def test_observation_keys_are_what_scoopgranular_gives():
         camera_names=["overhead"],
         camera_depths=True,
     )
-    obs = robomimic_compat.robomimic_observation(env, env.reset())
+    obs = robomimic_obs.observation(env, env.reset())
     env.close()
     for name in CONFIGS:
         modalities = _load(name)["observation"]["modalities"]["obs"]

@@ -12,7 +12,7 @@ import h5py
 import imageio
 import numpy as np
 import pytest
-from recording_helpers import CAMERA_SIZE, record_file, tiny_env_kwargs
+from helpers.recording import CAMERA_SIZE, record_file, tiny_env_kwargs
 
 from veragmil_suite.recording import open_dataset
 from veragmil_suite.scripts.dataset_tools import (

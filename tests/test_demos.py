@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 import robosuite
 
-from veragmil_suite import robomimic_compat
+from veragmil_suite import robomimic_compat, robomimic_obs
 from veragmil_suite.foods import TRAINING_FOODS
-from veragmil_suite.recording import check_schema, demo_names, observe, open_dataset, reset_to_demo, robomimic_obs
+from veragmil_suite.recording import check_schema, demo_names, open_dataset
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = ROOT / "demos" / "scoop.hdf5"
@@ -109,12 +109,12 @@ def test_sample_plays_back_on_the_pinned_mujoco():
         recorded = {key: g[f"obs/{key}"][()] for key in PLAYBACK_KEYS}
     kwargs = dict(meta["env_kwargs"], has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False)
     env = robosuite.make(meta["env_name"], **kwargs)
-    reset_to_demo(env, xml, states[0])
+    robomimic_obs.reset_to_demo(env, xml, states[0])
     env.step(actions[0])
     np.testing.assert_allclose(env.sim.get_state().flatten(), states[1], rtol=0, atol=ROUND_OFF)
     for t in range(0, len(states), 10):
         env.sim.set_state_from_flattened(states[t])
-        obs = robomimic_obs(env, observe(env))
+        obs = robomimic_obs.observation(env, robomimic_obs.observe(env))
         for key in PLAYBACK_KEYS:
             np.testing.assert_allclose(obs[key], recorded[key][t], rtol=0, atol=ROUND_OFF, err_msg=f"{key} at {t}")
     env.close()

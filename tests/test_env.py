@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import robosuite
 import robosuite.utils.transform_utils as T
-from helpers_env import grain_positions, make_env
+from helpers.env import grain_positions, make_env
 
 from veragmil_suite import settling
 from veragmil_suite.controllers import load_scoop_controller_config

@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from recording_helpers import record_file, tiny_env_kwargs
+from helpers.recording import record_file, tiny_env_kwargs
 
 from veragmil_suite.evaluation import EvaluationError, EvaluationResult, evaluate, parse_agent_argument
 

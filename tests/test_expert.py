@@ -3,7 +3,7 @@ time with coarse input."""
 
 import numpy as np
 import pytest
-from recording_helpers import make_env, tiny_env_kwargs
+from helpers.recording import make_env, tiny_env_kwargs
 
 from veragmil_suite.controllers import load_scoop_controller_config
 from veragmil_suite.expert import DRIFT_CORRECTION_MAX_S, PROFILES, QUANTIZE_FULL_SCALE, ScriptedScooper

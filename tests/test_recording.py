@@ -11,18 +11,16 @@ import xml.etree.ElementTree as ET
 import h5py
 import numpy as np
 import pytest
-from recording_helpers import CAMERA_SIZE, make_env, record_file, tiny_env_kwargs
+from helpers.recording import CAMERA_SIZE, make_env, record_file, tiny_env_kwargs
 
+from veragmil_suite import robomimic_obs
 from veragmil_suite.recording import (
     DatasetError,
     DemoWriter,
     EpisodeRecorder,
     env_meta,
-    observe,
     open_dataset,
     provenance,
-    reset_to_demo,
-    robomimic_obs,
 )
 from veragmil_suite.scripts.dataset_tools import info_main, split_main
 
@@ -114,10 +112,10 @@ def test_each_observation_is_that_of_its_recorded_state(recorded):
     env.reset()
     with open_dataset(path) as f:
         g = f["data/demo_1"]
-        reset_to_demo(env, g.attrs["model_file"], g["states"][0])
+        robomimic_obs.reset_to_demo(env, g.attrs["model_file"], g["states"][0])
         for t in (0, 5, STEPS - 1):
             env.sim.set_state_from_flattened(g["states"][t])
-            obs = robomimic_obs(env, observe(env))
+            obs = robomimic_obs.observation(env, robomimic_obs.observe(env))
             for key in obs:
                 if key == "robot0_joint_acc":  # accelerations come from the torques applied, not from the state
                     continue
@@ -134,7 +132,7 @@ def test_recorded_demo_replays_exactly_from_its_actions(recorded):
     with open_dataset(path) as f:
         g = f["data/demo_0"]
         states, actions = g["states"][()], g["actions"][()]
-        reset_to_demo(env, g.attrs["model_file"], states[0])
+        robomimic_obs.reset_to_demo(env, g.attrs["model_file"], states[0])
         np.testing.assert_array_equal(env.sim.get_state().flatten(), states[0])
         for t in range(1, len(actions)):
             env.step(actions[t - 1])
@@ -226,7 +224,7 @@ CHILD = textwrap.dedent(
     import sys
     sys.path.insert(0, {tests!r})
     import numpy as np
-    from recording_helpers import make_env, record_file, tiny_env_kwargs
+    from helpers.recording import make_env, record_file, tiny_env_kwargs
     from veragmil_suite.recording import EpisodeRecorder
 
     record_file({path!r}, episodes=2, steps=5)
@@ -288,7 +286,7 @@ WRITER_CHILD = textwrap.dedent(
     sys.path.insert(0, {tests!r})
     import h5py
     import numpy as np
-    from recording_helpers import record_file, tiny_env_kwargs
+    from helpers.recording import record_file, tiny_env_kwargs
     from veragmil_suite.recording import DemoWriter, env_meta, provenance
 
     kwargs = tiny_env_kwargs()

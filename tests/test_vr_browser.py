@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from vr_helpers import make_lift_env, run_loop
+from helpers.vr import make_lift_env, run_loop
 
 from veragmil_suite.devices import VRDevice
 from veragmil_suite.recording import open_dataset

@@ -9,9 +9,9 @@ import time
 
 import numpy as np
 import pytest
+from helpers.recording import make_env, tiny_env_kwargs
+from helpers.vr import HAND, Client, controller, eef_pose, lockstep, make_lift_env, run_loop
 from PIL import Image
-from recording_helpers import make_env, tiny_env_kwargs
-from vr_helpers import HAND, Client, controller, eef_pose, lockstep, make_lift_env, run_loop
 
 from veragmil_suite.devices import VRDevice
 from veragmil_suite.devices import vr_frames as F
@@ -354,7 +354,7 @@ def test_recenter_and_scale_buttons(session):
 
 def test_vr_drives_the_spoon_in_scoop_granular():
     """Our task: XArm7 with the spoon (6-D actions, no gripper), the overhead camera streamed by default."""
-    from helpers_env import make_env
+    from helpers.env import make_env
 
     env = make_env("rice", robot="XArm7", initialization_noise=None)
     env.reset()

@@ -12,7 +12,7 @@ import urllib.request
 
 import aiohttp
 import pytest
-from vr_helpers import Client, controller, pose_message
+from helpers.vr import Client, controller, pose_message
 
 from veragmil_suite.devices import vr_tls
 from veragmil_suite.devices.vr_protocol import PoseMessage, pack_frame

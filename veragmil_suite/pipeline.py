@@ -252,7 +252,7 @@ def merge_profile_dataset(path: Path, food_files: list[Path], demo_counts: list[
     """
     import h5py
 
-    from veragmil_suite.scripts.dataset_tools import merge_datasets
+    from veragmil_suite.datasets import merge_datasets
 
     sources = [str(p) for p in food_files]
     stamp = json.dumps([[s, os.path.getmtime(s)] for s in sources])

@@ -14,7 +14,8 @@ One file layout, defined here and nowhere else (robomimic's, plus our provenance
 The file is closed between episodes, so killing the collecting process (SIGINT or SIGKILL) mid-episode leaves
 every finished episode readable. An episode is written under a temporary name and renamed to ``demo_N`` once
 complete; appending continues the numbering. Recording starts from robomimic's ``reset_to(get_state())``
-(:func:`restart_from_current_state`), so replaying the actions open loop reproduces the recorded states exactly.
+(:func:`veragmil_suite.robomimic_obs.restart_from_current_state`), so replaying the actions open loop reproduces
+the recorded states exactly; observations and model XML come from veragmil_suite.robomimic_obs.
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ import numpy as np
 import robosuite
 
 import veragmil_suite
+from veragmil_suite import robomimic_obs
 from veragmil_suite.environments.scoop import StageTracker
 
 ENV_NAME = "ScoopGranular"
@@ -69,7 +71,7 @@ class DatasetError(ValueError):
 
 
 # ---------------------------------------------------------------------------------------------------------------- #
-# Environment metadata and the exact-replay start                                                                  #
+# Environment metadata                                                                                             #
 # ---------------------------------------------------------------------------------------------------------------- #
 
 
@@ -85,92 +87,6 @@ def env_meta(env_kwargs: dict) -> dict:
     except TypeError as e:
         raise DatasetError(f"env_kwargs must be JSON-serializable to be stored in the dataset: {e}") from None
     return dict(env_name=ENV_NAME, env_version=robosuite.__version__, type=ROBOSUITE_ENV_TYPE, env_kwargs=kwargs)
-
-
-def reset_to(env, model_xml: str, state: np.ndarray) -> None:
-    """robomimic's ``reset_to({"model": xml, "states": state})`` for a robosuite env: reload the XML, set the state."""
-    env.reset_from_xml_string(env.edit_model_xml(model_xml))
-    env.sim.reset()
-    env.sim.set_state_from_flattened(np.asarray(state))
-    env.sim.forward()
-
-
-def model_xml(env) -> str:
-    """The XML of the env's current model, built by its last (hard) reset.
-
-    Not ``env.sim.model.get_xml()``: MuJoCo saves the *last XML it parsed*, and a reset that settles a new pile
-    or measures grain inertias parses small models of its own, so that call can return one of those.
-    """
-    return env.edit_model_xml(env.model.get_xml())
-
-
-def restart_from_current_state(env) -> tuple[dict, str]:
-    """Restart the env, right after ``env.reset()``, from its own model and state the way playback will.
-
-    Stepping right after ``env.reset()`` and stepping after a playback's reset_to differ (the reload rebuilds the
-    simulation and its controller): starting the recording here makes open-loop replay reproduce every state.
-
-    Returns:
-        2-tuple: robosuite's observation at the restarted state, and the model XML to store with the episode
-    """
-    xml = model_xml(env)
-    reset_to(env, xml, env.sim.get_state().flatten())
-    return observe(env), xml
-
-
-def reset_to_demo(env, model_xml: str, state: np.ndarray) -> dict:
-    """reset_to for a recorded demo; returns robosuite's observation there.
-
-    ScoopGranular finds which pile variant the demo's XML holds, so the metrics and object observations of a
-    replay use that pile's grain sizes whatever the environment drew last.
-    """
-    reset_to(env, model_xml, state)
-    return observe(env)
-
-
-# ---------------------------------------------------------------------------------------------------------------- #
-# Observations                                                                                                     #
-# ---------------------------------------------------------------------------------------------------------------- #
-
-
-def robomimic_obs(env, raw: dict) -> dict:
-    """robosuite's observation dict as robomimic stores and reads it (as veragmil_suite.robomimic_compat does).
-
-    Every observable under its own name except the concatenated ``*-state`` vectors, with robosuite's
-    ``object-state`` as ``object``; camera images and depth made upright (robosuite renders them upside down under
-    its default "opengl" convention); empty observables (the spoon's gripper joints) left out. Depth stays
-    robosuite's normalized depth buffer, as policies see it in rollouts (metres:
-    ``robosuite.utils.camera_utils.get_real_depth_map``).
-    """
-    import robosuite.macros
-
-    flip = robosuite.macros.IMAGE_CONVENTION == "opengl"
-    out = {}
-    for key, value in raw.items():
-        if key.endswith("-state"):
-            if key == "object-state":
-                out["object"] = np.array(value, dtype=np.float64)
-            continue
-        value = np.array(value)
-        if value.size == 0:
-            continue
-        observable = env._observables.get(key)
-        if observable is not None and observable.modality == "image":
-            out[key] = np.ascontiguousarray(value[::-1]) if flip else value
-        else:
-            out[key] = value.astype(np.float64)
-    return out
-
-
-def observe(env) -> dict:
-    """robosuite's observation of the simulation's current state, after a state was set by hand.
-
-    The same observation ``env.step()`` returns for the state it reached (ScoopGranular observes at the end of
-    each control step), so every recorded observation is a function of its recorded state: what robomimic's
-    dataset_states_to_obs extracts, and what replays re-render.
-    """
-    env.sim.forward()
-    return env._get_observations(force_update=True)
 
 
 # ---------------------------------------------------------------------------------------------------------------- #
@@ -226,9 +142,9 @@ class EpisodeRecorder:
         observation."""
         self._clear()
         self.env.reset(seed=seed)
-        raw, self.model_file = restart_from_current_state(self.env)
+        raw, self.model_file = robomimic_obs.restart_from_current_state(self.env)
         self.obs = raw
-        self._converted = robomimic_obs(self.env, raw)
+        self._converted = robomimic_obs.observation(self.env, raw)
         return raw
 
     def step(self, action: np.ndarray, label: np.ndarray | None = None):
@@ -248,7 +164,7 @@ class EpisodeRecorder:
         raw, reward, done, info = self.env.step(action)
         if not np.isfinite(action).all():
             return raw, reward, done, info  # not executed (env.step ended the episode and says why): not stored
-        after = robomimic_obs(self.env, raw)
+        after = robomimic_obs.observation(self.env, raw)
         self._states.append(state)
         self._executed.append(action.copy())
         self._actions.append(stored.copy())

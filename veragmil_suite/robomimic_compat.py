@@ -13,7 +13,8 @@ Imports:
       exist": its compiled ops do not load, yet it registers fake kernels for them). The missing op schemas are
       defined only when that import fails, then the import is retried; otherwise nothing is defined.
 
-robosuite 1.5 environments (EnvRobosuite's methods are replaced, so every robomimic path uses them):
+robosuite 1.5 environments (EnvRobosuite's methods are replaced, so every robomimic path uses them; observations
+and model XML come from veragmil_suite.robomimic_obs, the conversion the dataset recorder uses too):
     - ``env_name`` stored inside env_kwargs (robosuite 1.5's own collection scripts do) made environment creation
       from a dataset or checkpoint fail with a duplicate argument: it is dropped.
     - controller configs of robosuite <= 1.4 (one arm part, e.g. {"type": "OSC_POSE"}) are converted to 1.5's
@@ -70,6 +71,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from veragmil_suite import robomimic_obs
+
 # Schemas of the torchvision ops whose fake kernels torchvision registers even when its compiled library did not
 # load (the same signatures as torchvision's C++ registrations).
 _TORCHVISION_OP_SCHEMAS = {
@@ -91,7 +94,7 @@ def install() -> None:
         return
     _install_mujoco_py_stand_in()
     _import_torchvision()
-    _remember_sim_xml()
+    robomimic_obs.remember_sim_xml()
 
     from robomimic.envs.env_robosuite import EnvRobosuite
     from robomimic.utils import env_utils, train_utils
@@ -154,63 +157,6 @@ def _import_torchvision() -> None:
 # ---------------------------------------------------------------------------------------------------------------- #
 # robosuite 1.5 environments                                                                                         #
 # ---------------------------------------------------------------------------------------------------------------- #
-
-
-def _remember_sim_xml() -> None:
-    """Makes every robosuite MjSim keep the XML it was compiled from (see ``model_xml``)."""
-    from robosuite.utils.binding_utils import MjSim
-
-    if getattr(MjSim.from_xml_string, "_keeps_source_xml", False):
-        return
-    compile_xml = MjSim.from_xml_string.__func__
-
-    @functools.wraps(compile_xml)
-    def from_xml_string(cls, xml):
-        sim = compile_xml(cls, xml)
-        sim.source_xml = xml
-        return sim
-
-    from_xml_string._keeps_source_xml = True
-    MjSim.from_xml_string = classmethod(from_xml_string)
-
-
-def model_xml(sim) -> str:
-    """
-    The MJCF a robosuite simulation was compiled from.
-
-    robosuite 1.5's ``sim.model.get_xml()`` returns the XML of whichever model MuJoCo compiled last in the process
-    (a settling scene, another environment), so recorders and robomimic's get_state must not rely on it.
-    """
-    xml = getattr(sim, "source_xml", None)
-    return xml if xml is not None else sim.model.get_xml()
-
-
-def robomimic_observation(env, raw: dict | None = None, postprocess: bool = False) -> dict[str, np.ndarray]:
-    """
-    robomimic's observation dictionary from a robosuite 1.5 environment's observations.
-
-    Every enabled observable is kept under its own name (``robot0_eef_pos``, ``desired_pose``, ...), robosuite's
-    concatenation ``object-state`` becomes ``object``, other ``*-state`` concatenations and empty observables (the
-    spoon's gripper_qpos: robomimic's tensor reshapes fail on them) are left out, and camera images are made
-    upright. A recorder that passes step()'s observations through this function (postprocess=False) stores exactly
-    what policies see in rollouts; with postprocess=True, the rgb and depth keys robomimic's ObsUtils knows are
-    prepared for the networks (channels first, scaled).
-    """
-    from robomimic.utils import obs_utils
-
-    from veragmil_suite.recording import robomimic_obs
-
-    if raw is None:
-        raw = env._get_observations(force_update=True)
-    obs = robomimic_obs(env, raw)
-    if postprocess:
-        modalities = obs_utils.OBS_KEYS_TO_MODALITIES or {}
-        for key, value in obs.items():
-            # dict.get: robomimic's mapping registers unknown keys as low_dim on [] lookups
-            modality = dict.get(modalities, key)
-            if modality in ("rgb", "depth"):
-                obs[key] = obs_utils.process_obs(obs=value, obs_modality=modality)
-    return obs
 
 
 def _registered_keys(modality: str) -> list[str]:
@@ -300,13 +246,13 @@ def _env_step(self, action):
 
 
 def _env_get_observation(self, di=None):
-    """Observation dictionary (see robomimic_observation)."""
-    return robomimic_observation(self.env, di, postprocess=self.postprocess_visual_obs)
+    """Observation dictionary (see veragmil_suite.robomimic_obs.observation)."""
+    return robomimic_obs.observation(self.env, di, postprocess=self.postprocess_visual_obs)
 
 
 def _env_get_state(self):
     """The simulation's own XML and flattened state, as reset_to expects them."""
-    return dict(model=model_xml(self.env.sim), states=np.array(self.env.sim.get_state().flatten()))
+    return dict(model=robomimic_obs.model_xml(self.env), states=np.array(self.env.sim.get_state().flatten()))
 
 
 # ---------------------------------------------------------------------------------------------------------------- #
