@@ -33,13 +33,13 @@ def bench(spec: str, food: str, episodes: int, processes: int, horizon: int, see
         {"agent": spec}, [food], episodes, processes=processes, seed=seed, horizon=horizon, progress=False
     )
     wall = time.perf_counter() - start
-    steps = sum(e["steps"] for e in result.episodes)
+    steps = sum(e.steps for e in result.episodes)
     return dict(
         processes=processes,
         wall_s=wall,
         episodes_per_min=episodes / wall * SECONDS_PER_MINUTE,
         steps_per_s=steps / wall,
-        successes=sum(e["success"] for e in result.episodes),
+        successes=sum(e.success for e in result.episodes),
     )
 
 

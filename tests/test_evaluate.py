@@ -1,7 +1,7 @@
 """
 veragmil-evaluate: the tables' numbers against a hand-computed case, a recorded dataset scored by its own stored
-metrics, the expert and a tiny trained checkpoint rolled out in parallel workers, every output file, and clear
-errors (exit 2) for a bad food or agent.
+metrics, the expert and a tiny trained checkpoint rolled out in parallel workers, every output file, the fixed
+formats of episodes.csv and the journal, and clear errors (exit 2) for a bad food or agent.
 """
 
 import csv
@@ -9,17 +9,42 @@ import json
 import math
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
 from helpers.recording import record_file, tiny_env_kwargs
 
-from veragmil_suite.evaluation import EvaluationError, EvaluationResult, evaluate, parse_agent_argument
+from veragmil_suite.evaluation import (
+    JOURNAL_NAME,
+    EpisodeRecord,
+    EpisodeTask,
+    EvaluationError,
+    EvaluationResult,
+    Journal,
+    evaluate,
+    parse_agent_argument,
+    parse_spec,
+)
 
 BIN = Path(sys.executable).parent
 # a cheap scene: a dozen pasta pieces, one settled pile
 CHEAP = {"n_grains": 12, "pile_variants": 1}
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+# episodes.csv as published results and scripts read it: EpisodeRecord's fields, in order
+EPISODES_CSV_HEADER = (
+    "agent,food,episode,seed,success,grains_spilled,spilled_volume_cm3,completion_time_s,steps,end_reason,"
+    "physics_error,grains_in_spoon,spill_fraction,stage,peak_grains_in_spoon,wall_s"
+)
+EPISODES_CSV_ROW = "A,rice,0,0,True,2,0.2,10.0,200,success,,3,0.0,held,3,1.0"
+# one line of episodes.jsonl, the journal a resumed run reads back
+JOURNAL_LINE = (
+    '{"key": "[\\"expert\\", \\"expert\\", \\"pasta\\", 0, 80, {\\"n_grains\\": 12, \\"pile_variants\\": 1}]", '
+    '"record": {"agent": "expert", "food": "pasta", "episode": 0, "seed": 0, "success": false, "grains_spilled": 0, '
+    '"spilled_volume_cm3": 0.0, "completion_time_s": 4.0, "steps": 80, "end_reason": "horizon", "physics_error": "", '
+    '"grains_in_spoon": 12, "spill_fraction": 0.0, "stage": "loaded spoon", "peak_grains_in_spoon": 12, '
+    '"wall_s": 1.3754890439995506}}'
+)
 
 
 def _run(*args, timeout=300):
@@ -33,7 +58,7 @@ def _run(*args, timeout=300):
 
 
 def _episode(agent, food, success, spilled, time_s, episode=0):
-    return dict(
+    return EpisodeRecord(
         agent=agent,
         food=food,
         episode=episode,
@@ -122,7 +147,9 @@ def test_summary_and_tables_match_a_hand_computed_case(tmp_path):
     with open(paths["episodes.csv"]) as f:
         episodes = list(csv.DictReader(f))
     assert len(episodes) == len(HAND_CASE) and episodes[2]["completion_time_s"] == "30.0"
+    assert Path(paths["episodes.csv"]).read_text().splitlines()[:2] == [EPISODES_CSV_HEADER, EPISODES_CSV_ROW]
     saved = json.loads(Path(paths["results.json"]).read_text())
+    assert list(saved["episodes"][0]) == EPISODES_CSV_HEADER.split(",")
     assert len(saved["episodes"]) == len(HAND_CASE) and saved["config"] == {"seed": 0}
     assert episodes[2]["stage"] == "reached pile" and episodes[0]["stage"] == "held"
     with open(paths["stages.csv"]) as f:
@@ -132,6 +159,25 @@ def test_summary_and_tables_match_a_hand_computed_case(tmp_path):
     assert pasta["completion_time_s_mean"] is None and pasta["success_rate"] == 0.0
     assert Path(paths["table.md"]).read_text() == result.markdown()
     assert Path(paths["success.png"]).read_bytes()[:8] == PNG_MAGIC
+
+
+def test_a_journaled_episode_reads_back_and_is_journaled_the_same_way(tmp_path):
+    """Resumed runs read the journals earlier runs wrote: the line format is fixed."""
+    path = tmp_path / JOURNAL_NAME
+    path.write_text(JOURNAL_LINE + "\n")
+    task = EpisodeTask("renamed", parse_spec("expert"), "pasta", 3, 0, 80, {"n_grains": 12, "pile_variants": 1})
+    record = Journal(path, resume=True).get(task)
+    assert record == EpisodeRecord(**{**json.loads(JOURNAL_LINE)["record"], "episode": 3})
+    assert (record.steps, record.end_reason, record.stage, record.peak_grains_in_spoon) == (
+        80,
+        "horizon",
+        "loaded spoon",
+        12,
+    )
+    again = tmp_path / "again.jsonl"
+    Journal(again, resume=False).add(task, replace(record, episode=0))
+    assert again.read_text() == JOURNAL_LINE + "\n"
+    assert Journal(path, resume=False).records == {} and not path.exists()  # a fresh run starts a new journal
 
 
 def test_agent_arguments_name_and_check_specs(tmp_path):
@@ -151,14 +197,14 @@ def test_dataset_agent_reports_the_demos_stored_metrics(tmp_path):
     path = tmp_path / "human.hdf5"
     recorded = record_file(path, episodes=2, steps=12, env_kwargs=tiny_env_kwargs(cameras=()), operator="alice")
     result = evaluate({"human": f"dataset:{path}"}, foods=["pasta", "rice"], episodes=5, progress=False)
-    assert [(e["agent"], e["food"], e["episode"]) for e in result.episodes] == [
+    assert [(e.agent, e.food, e.episode) for e in result.episodes] == [
         ("human", "pasta", 0),
         ("human", "pasta", 1),
     ]
     for episode, demo in zip(result.episodes, recorded):
         for key in ("success", "grains_spilled", "spilled_volume_cm3", "completion_time_s", "grains_in_spoon"):
-            assert episode[key] == demo.metrics[key], key
-        assert episode["steps"] == demo.num_samples == 12
+            assert getattr(episode, key) == demo.metrics[key], key
+        assert episode.steps == demo.num_samples == 12
     assert set(result.summary) == {("human", "pasta")}  # no rice in the file: no entry, "-" in the tables
     assert "| rice | - |" in result.markdown()
 
@@ -230,9 +276,9 @@ def test_checkpoint_agent_rolls_out_on_the_evaluated_food(tmp_path):
         env_kwargs=CHEAP,
         progress=False,
     )
-    bc = next(e for e in result.episodes if e["agent"] == "BC")
-    assert bc["food"] == "peas" and bc["seed"] == 7
-    assert bc["steps"] == horizon and bc["end_reason"] == "horizon" and not bc["success"]
-    assert {e["seed"] for e in result.episodes} == {7}
+    bc = next(e for e in result.episodes if e.agent == "BC")
+    assert bc.food == "peas" and bc.seed == 7
+    assert bc.steps == horizon and bc.end_reason == "horizon" and not bc.success
+    assert {e.seed for e in result.episodes} == {7}
     assert "| peas | 0 (0-79) |" in result.markdown()  # one episode: a wide interval
-    assert bc["stage"] == "start"  # 15 steps from the pre-scoop pose do not reach the pile
+    assert bc.stage == "start"  # 15 steps from the pre-scoop pose do not reach the pile

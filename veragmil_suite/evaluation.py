@@ -6,9 +6,10 @@ recorded dataset (``dataset:<file.hdf5>``, e.g. human demonstrations: its demos'
 Episode ``i`` of a food runs with env seed ``seed + i`` for every agent, so all agents meet the same bowls and piles.
 Episodes run in parallel worker processes, one task per (agent, food, episode).
 
-An episode ends once success has held for ``SUCCESS_HOLD_S`` (as veragmil-collect ends a demonstration), at the
-horizon, when the agent gives up (the expert after its longest hold) or at a physics error. Its success is that of
-the last step, as recorded demos store it.
+An episode runs in the loop veragmil-collect records demonstrations with (veragmil_suite.episode): it ends once
+success has held for ``SUCCESS_HOLD_S``, at the horizon, when the agent gives up (the expert after its longest hold)
+or at a physics error. Its success is that of the last step, as recorded demos store it. Each episode is one
+EpisodeRecord, whose fields are the columns of episodes.csv and the keys of results.json and the journal.
 
 Table II: success % per food, grouped seen (training) / unseen, with per-group and overall averages (each food
 weighs the same). Table III: spilled pieces (mean +- std over all episodes) and completion time. The paper reports
@@ -30,18 +31,17 @@ import time
 import traceback
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
 
+from veragmil_suite.episode import SUCCESS_HOLD_S, run_until_done
 from veragmil_suite.foods import TRAINING_FOODS, UNSEEN_FOODS
 
 ALL_FOODS: tuple[str, ...] = TRAINING_FOODS + UNSEEN_FOODS
 SEEN_LABEL = "seen (training)"
 UNSEEN_LABEL = "unseen"
-# an episode counts as done once success has held this long (veragmil-collect's default --success-hold)
-SUCCESS_HOLD_S = 1.0
 # the robot of the expert's environment (checkpoints bring their own env_args)
 EXPERT_ROBOT = "XArm7"
 VIDEO_SIZE = 256
@@ -52,24 +52,43 @@ MISSING = "-"
 # 95% two-sided normal quantile, for the Wilson intervals of success rates
 WILSON_Z = 1.959964
 
-EPISODE_FIELDS = (
-    "agent",
-    "food",
-    "episode",
-    "seed",
-    "success",
-    "grains_spilled",
-    "spilled_volume_cm3",
-    "completion_time_s",
-    "steps",
-    "end_reason",
-    "physics_error",
-    "grains_in_spoon",
-    "spill_fraction",
-    "stage",
-    "peak_grains_in_spoon",
-    "wall_s",
-)
+
+@dataclass(frozen=True)
+class EpisodeRecord:
+    """
+    One scored episode. Its fields, in this order, are the columns of episodes.csv and the keys of an episode in
+    results.json and in the journal (episodes.jsonl), so the three cannot drift apart.
+    """
+
+    agent: str
+    food: str
+    episode: int
+    seed: int | None  # None: a recorded demo without a stored seed
+    success: bool
+    grains_spilled: int
+    spilled_volume_cm3: float
+    completion_time_s: float
+    steps: int
+    end_reason: str
+    physics_error: str
+    grains_in_spoon: int
+    spill_fraction: float
+    stage: str
+    peak_grains_in_spoon: int | None  # None: a recorded demo (its steps' loads are not stored)
+    wall_s: float
+
+    @classmethod
+    def columns(cls) -> tuple[str, ...]:
+        """The field names, in order: episodes.csv's header."""
+        return tuple(f.name for f in fields(cls))
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, values: dict) -> EpisodeRecord:
+        """The record a to_dict gave (read back from the journal); KeyError names a missing field."""
+        return cls(**{name: values[name] for name in cls.columns()})
 
 
 class EvaluationError(RuntimeError):
@@ -153,48 +172,6 @@ def check_foods(foods: list[str]) -> list[str]:
 # ---------------------------------------------------------------------------------------------------------------- #
 # One episode                                                                                                      #
 # ---------------------------------------------------------------------------------------------------------------- #
-
-
-def run_until_done(
-    act: Callable[[dict], np.ndarray | None],
-    step: Callable[[np.ndarray], tuple],
-    obs: dict,
-    control_freq: float,
-    horizon: int,
-    success_hold_s: float = SUCCESS_HOLD_S,
-    on_step: Callable[[], None] | None = None,
-) -> dict:
-    """
-    Steps an agent until success has held ``success_hold_s``, the horizon, a physics error or the agent gives up
-    (``act`` returns None). Returns the last info, steps taken, end_reason, the largest spoon load seen and the
-    furthest stage reached (SCOOP_STAGES).
-    """
-    from veragmil_suite.environments.scoop import StageTracker
-
-    hold = max(1, int(round(success_hold_s * control_freq)))
-    streak, steps, peak, info, reason = 0, 0, 0, {}, "horizon"
-    stages = StageTracker()
-    while steps < horizon:
-        action = act(obs)
-        if action is None:
-            reason = "gave up"
-            break
-        obs, _, done, info = step(action)
-        steps += 1
-        if on_step is not None:
-            on_step()
-        peak = max(peak, int(info.get("grains_in_spoon", 0)))
-        stages.update(info)
-        streak = streak + 1 if info.get("success") else 0
-        if info.get("physics_error"):
-            reason = "physics"
-            break
-        if streak >= hold:
-            reason = "success"
-            break
-        if done:
-            break
-    return dict(info=info, steps=steps, end_reason=reason, peak_grains_in_spoon=peak, stage=stages.stage)
 
 
 @dataclass(frozen=True)
@@ -284,8 +261,8 @@ def _checkpoint_env(task: EpisodeTask):
     return env.env, obs, lambda o: policy(ob=o), env.step
 
 
-def run_episode(task: EpisodeTask) -> dict:
-    """Runs one episode of a checkpoint or expert agent; returns its record (EPISODE_FIELDS)."""
+def run_episode(task: EpisodeTask) -> EpisodeRecord:
+    """Runs one episode of a checkpoint or expert agent; returns its record."""
     from veragmil_suite.recording import episode_metrics
 
     start = time.perf_counter()
@@ -302,15 +279,15 @@ def run_episode(task: EpisodeTask) -> dict:
     if task.video_path:
         grab()
     horizon = task.horizon if task.horizon is not None else int(env.horizon)
-    out = run_until_done(act, step, obs, env.control_freq, horizon, on_step=grab if task.video_path else None)
+    end = run_until_done(act, step, obs, env.control_freq, horizon, SUCCESS_HOLD_S, grab if task.video_path else None)
     env.close()
     if task.video_path:
         import imageio
 
         Path(task.video_path).parent.mkdir(parents=True, exist_ok=True)
         imageio.mimsave(task.video_path, frames, fps=env.control_freq)
-    metrics = episode_metrics(out["info"], out["stage"])
-    return dict(
+    metrics = episode_metrics(end.info, end.stage)
+    return EpisodeRecord(
         agent=task.agent,
         food=task.food,
         episode=task.episode,
@@ -319,18 +296,18 @@ def run_episode(task: EpisodeTask) -> dict:
         grains_spilled=metrics["grains_spilled"],
         spilled_volume_cm3=metrics["spilled_volume_cm3"],
         completion_time_s=metrics["completion_time_s"],
-        steps=out["steps"],
-        end_reason=out["end_reason"],
+        steps=end.steps,
+        end_reason=end.reason,
         physics_error=metrics["physics_error"],
         grains_in_spoon=metrics["grains_in_spoon"],
         spill_fraction=metrics["spill_fraction"],
         stage=metrics["stage"],
-        peak_grains_in_spoon=out["peak_grains_in_spoon"],
+        peak_grains_in_spoon=end.peak_grains_in_spoon,
         wall_s=time.perf_counter() - start,
     )
 
 
-def _run_task(task: EpisodeTask) -> dict:
+def _run_task(task: EpisodeTask) -> EpisodeRecord:
     """Worker entry: the record, or an EvaluationError carrying this process's traceback."""
     try:
         return run_episode(task)
@@ -339,7 +316,7 @@ def _run_task(task: EpisodeTask) -> dict:
         raise EvaluationError(f"{where} failed in a worker:\n{traceback.format_exc()}") from e
 
 
-def dataset_episodes(name: str, path: str, foods: list[str]) -> list[dict]:
+def dataset_episodes(name: str, path: str, foods: list[str]) -> list[EpisodeRecord]:
     """A recorded dataset's demos as episode records (their stored metrics), for the foods evaluated."""
     from veragmil_suite.recording import demo_names, open_dataset
 
@@ -356,7 +333,7 @@ def dataset_episodes(name: str, path: str, foods: list[str]) -> list[dict]:
             index = counts[food] = counts.get(food, -1) + 1
             steps = int(a["num_samples"])
             out.append(
-                dict(
+                EpisodeRecord(
                     agent=name,
                     food=food,
                     episode=index,
@@ -401,14 +378,14 @@ def wilson_interval(successes: int, n: int, z: float = WILSON_Z) -> tuple[float,
     return max(0.0, centre - half), min(1.0, centre + half)
 
 
-def summarize(episodes: list[dict]) -> dict[tuple[str, str], dict]:
+def summarize(episodes: list[EpisodeRecord]) -> dict[tuple[str, str], dict]:
     """Per (agent, food): success rate, spilled pieces mean and std (all episodes), completion time over successes."""
     out = {}
-    for key in dict.fromkeys((e["agent"], e["food"]) for e in episodes):
-        rows = [e for e in episodes if (e["agent"], e["food"]) == key]
-        ok = [e for e in rows if e["success"]]
-        spilled = np.array([e["grains_spilled"] for e in rows], dtype=float)
-        times = np.array([e["completion_time_s"] for e in ok], dtype=float)
+    for key in dict.fromkeys((e.agent, e.food) for e in episodes):
+        rows = [e for e in episodes if (e.agent, e.food) == key]
+        ok = [e for e in rows if e.success]
+        spilled = np.array([e.grains_spilled for e in rows], dtype=float)
+        times = np.array([e.completion_time_s for e in ok], dtype=float)
         out[key] = dict(
             agent=key[0],
             food=key[1],
@@ -418,20 +395,20 @@ def summarize(episodes: list[dict]) -> dict[tuple[str, str], dict]:
             success_ci95=wilson_interval(len(ok), len(rows)),
             grains_spilled_mean=float(spilled.mean()),
             grains_spilled_std=float(spilled.std()),
-            spilled_volume_cm3_mean=float(np.mean([e["spilled_volume_cm3"] for e in rows])),
+            spilled_volume_cm3_mean=float(np.mean([e.spilled_volume_cm3 for e in rows])),
             completion_time_s_mean=float(times.mean()) if ok else math.nan,
             completion_time_s_std=float(times.std()) if ok else math.nan,
-            physics_errors=sum(bool(e["physics_error"]) for e in rows),
-            stages={stage: sum(e.get("stage") == stage for e in rows) for stage in _stage_columns(rows)},
+            physics_errors=sum(bool(e.physics_error) for e in rows),
+            stages={stage: sum(e.stage == stage for e in rows) for stage in _stage_columns(rows)},
         )
     return out
 
 
-def _stage_columns(rows: list[dict]) -> list[str]:
+def _stage_columns(rows: list[EpisodeRecord]) -> list[str]:
     """SCOOP_STAGES, and "-" for recorded demos that predate stage labels (only when there are any)."""
     from veragmil_suite.environments.scoop import SCOOP_STAGES
 
-    return [*SCOOP_STAGES] + ([MISSING] if any(r.get("stage") not in SCOOP_STAGES for r in rows) else [])
+    return [*SCOOP_STAGES] + ([MISSING] if any(r.stage not in SCOOP_STAGES for r in rows) else [])
 
 
 def stage_table(summary: dict, agents: list[str], foods: list[str], fmt: str = "markdown") -> str:
@@ -637,7 +614,7 @@ def plot_success(summary: dict, agents: list[str], foods: list[str], path: str) 
 class EvaluationResult:
     """Every episode, the per (agent, food) summary, and the run's configuration."""
 
-    episodes: list[dict]
+    episodes: list[EpisodeRecord]
     agents: list[str]
     foods: list[str]
     config: dict = field(default_factory=dict)
@@ -660,10 +637,11 @@ class EvaluationResult:
         names = ("episodes.csv", "results.json", "table.md", "table.csv", "stages.md", "stages.csv")
         paths = {name: str(out / name) for name in names}
         with open(paths["episodes.csv"], "w", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=EPISODE_FIELDS, extrasaction="ignore")
+            writer = csv.DictWriter(f, fieldnames=EpisodeRecord.columns())
             writer.writeheader()
-            writer.writerows(self.episodes)
-        results = dict(config=self.config, summary=list(self.summary.values()), episodes=self.episodes)
+            writer.writerows(e.to_dict() for e in self.episodes)
+        episodes = [e.to_dict() for e in self.episodes]
+        results = dict(config=self.config, summary=list(self.summary.values()), episodes=episodes)
         Path(paths["results.json"]).write_text(json.dumps(_json_safe(results), indent=2))
         Path(paths["table.md"]).write_text(self.markdown())
         Path(paths["table.csv"]).write_text(csv_tables(self.summary, self.agents, self.foods))
@@ -672,8 +650,8 @@ class EvaluationResult:
         paths["success.png"] = str(out / "success.png")
         plot_success(self.summary, self.agents, self.foods, paths["success.png"])
         for e in self.episodes:  # this run's videos only, not those an earlier run left in the folder
-            video = out / "videos" / _video_name(e["agent"], e["food"], e["episode"])
-            if e["episode"] < self.config.get("videos", 0) and video.is_file():
+            video = out / "videos" / _video_name(e.agent, e.food, e.episode)
+            if e.episode < self.config.get("videos", 0) and video.is_file():
                 paths[f"videos/{video.name}"] = str(video)
         return paths
 
@@ -739,7 +717,7 @@ def evaluate(
     if videos and output_dir is None:
         raise ValueError("videos need an output_dir to be written to")
     video_dir = Path(output_dir) / "videos" if output_dir is not None else None
-    records: list[dict] = []
+    records: list[EpisodeRecord] = []
     tasks = []
     # episode-major order: every agent and food progresses together, and a slow food does not come last
     for i in range(int(episodes)):
@@ -756,7 +734,7 @@ def evaluate(
     journal = Journal(Path(output_dir) / JOURNAL_NAME, resume) if output_dir is not None else None
     if journal is not None and resume:
         done = [(t, journal.get(t)) for t in tasks]
-        reused = [dict(record, agent=t.agent) for t, record in done if record is not None]
+        reused = [replace(record, agent=t.agent) for t, record in done if record is not None]
         tasks = [t for t, record in done if record is None]
         if reused and say is not None:
             say(f"skipping {len(reused)} evaluation episodes journaled in {journal.path}; {len(tasks)} to run")
@@ -765,7 +743,7 @@ def evaluate(
     if tasks:
         records += _run_parallel(tasks, int(processes), progress, journal)
     order = {name: i for i, name in enumerate(specs)}
-    records.sort(key=lambda r: (order[r["agent"]], foods.index(r["food"]), r["episode"]))
+    records.sort(key=lambda r: (order[r.agent], foods.index(r.food), r.episode))
     config = dict(
         agents={name: str(spec) for name, spec in agents.items()},
         foods=foods,
@@ -795,39 +773,39 @@ class Journal:
     def __init__(self, path: Path, resume: bool):
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.records: dict[str, dict] = {}
+        self.records: dict[str, EpisodeRecord] = {}
         if resume and self.path.exists():
             for line in self.path.read_text().splitlines():
                 try:
                     entry = json.loads(line)
                 except ValueError:
                     continue  # the last line of a killed run
-                self.records[entry["key"]] = entry["record"]
+                self.records[entry["key"]] = EpisodeRecord.from_dict(entry["record"])
         elif self.path.exists():
             self.path.unlink()
 
     @staticmethod
     def key(task: EpisodeTask) -> str:
-        fields = [task.spec.kind, task.spec.target, task.food, task.seed, task.horizon, task.env_kwargs]
+        parts = [task.spec.kind, task.spec.target, task.food, task.seed, task.horizon, task.env_kwargs]
         if task.video_path:
-            fields += [task.video_path, task.video_camera]
-        return json.dumps(fields, sort_keys=True)
+            parts += [task.video_path, task.video_camera]
+        return json.dumps(parts, sort_keys=True)
 
-    def get(self, task: EpisodeTask) -> dict | None:
+    def get(self, task: EpisodeTask) -> EpisodeRecord | None:
         record = self.records.get(self.key(task))
         if record is None or (task.video_path and not Path(task.video_path).is_file()):
             return None
-        return dict(record, episode=task.episode)
+        return replace(record, episode=task.episode)
 
-    def add(self, task: EpisodeTask, record: dict) -> None:
+    def add(self, task: EpisodeTask, record: EpisodeRecord) -> None:
         self.records[self.key(task)] = record
         with open(self.path, "a") as f:
-            f.write(json.dumps(dict(key=self.key(task), record=_json_safe(record))) + "\n")
+            f.write(json.dumps(dict(key=self.key(task), record=_json_safe(record.to_dict()))) + "\n")
 
 
 def _run_parallel(
     tasks: list[EpisodeTask], processes: int, progress: bool, journal: Journal | None = None
-) -> list[dict]:
+) -> list[EpisodeRecord]:
     """Runs the tasks in ``processes`` fresh worker processes, journaling each record; the first failure stops
     the run and is raised."""
     from tqdm import tqdm

@@ -29,6 +29,7 @@ import time
 
 import numpy as np
 
+from veragmil_suite.episode import SUCCESS_HOLD_S, run_until_done
 from veragmil_suite.scripts.cli import port, positive_int
 
 DEVICES = ("keyboard", "spacemouse", "vr", "scripted")
@@ -87,7 +88,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--max-attempts", type=int, default=None, help="stop after this many episodes (default: 3x --episodes + 2 "
         "for scripted, unlimited otherwise)"
     )  # fmt: skip
-    p.add_argument("--success-hold", type=float, default=1.0, help="end an episode once success held this long, s")
+    p.add_argument(
+        "--success-hold",
+        type=float,
+        default=SUCCESS_HOLD_S,
+        help="end an episode once success held this long, s",
+    )
     p.add_argument("--operator", default=None, help="who demonstrates (stored with every demo)")
     p.add_argument("--profile", choices=sorted(PROFILES), default="expert", help="scripted operator profile")
     p.add_argument("--valid-ratio", type=float, default=0.1, help="fraction of demos in mask/valid")
@@ -300,29 +306,23 @@ def make_operator(args, env):
 def run_episode(
     env, recorder, operator, success_hold_s: float, render: bool, realtime: bool, seed: int | None = None
 ) -> str:
-    """Record one episode (env and operator seeded with ``seed``); returns why it ended: "success", "horizon",
-    "operator", "gave up" or "physics"."""
+    """Record one episode (env and operator seeded with ``seed``) through the shared episode loop
+    (veragmil_suite.episode); returns why it ended: "success", "horizon", "operator" (a human stopped), "gave up"
+    (the scripted operator did) or "physics". A ``success_hold_s`` <= 0 leaves success out of the ending rule."""
     obs = recorder.reset(seed=seed)
     operator.begin(seed=seed)
-    hold_steps = max(1, int(round(success_hold_s * env.control_freq))) if success_hold_s > 0 else None
-    streak = 0
-    while True:
-        start = time.perf_counter()
-        action = operator.action(obs)
-        if action is None:
-            return "operator" if operator.source == "human" else "gave up"
-        obs, _, done, info = recorder.step(action, label=operator.label)
-        if render:
-            env.render()
-        streak = streak + 1 if info.get("success") else 0
-        if info.get("physics_error"):
-            return "physics"
-        if hold_steps is not None and streak >= hold_steps:
-            return "success"
-        if done:
-            return "horizon"
-        if realtime:
-            time.sleep(max(0.0, env.control_timestep - (time.perf_counter() - start)))
+    end = run_until_done(
+        operator.action,
+        lambda action: recorder.step(action, label=operator.label),
+        obs,
+        env.control_freq,
+        env.horizon,
+        success_hold_s=success_hold_s,
+        on_step=env.render if render else None,
+        realtime=realtime,
+        stopped="operator" if operator.source == "human" else "gave up",
+    )
+    return end.reason
 
 
 def record_attempt(env, recorder, operator, args, seed: int, render: bool = False, realtime: bool = False):

@@ -18,16 +18,21 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
+from veragmil_suite.episode import SUCCESS_HOLD_S, run_until_done
+
 
 def run_expert_episode(
-    food: str, seed: int, profile: str = "expert", success_hold_s: float = 1.0, env_kwargs: dict | None = None
+    food: str,
+    seed: int,
+    profile: str = "expert",
+    success_hold_s: float = SUCCESS_HOLD_S,
+    env_kwargs: dict | None = None,
 ) -> dict:
     """One scripted episode of ``food`` with env and expert seeded by ``seed``; returns its metrics."""
     os.environ.setdefault("MUJOCO_GL", "osmesa")
     import robosuite
 
     import veragmil_suite  # noqa: F401
-    from veragmil_suite.evaluation import run_until_done
     from veragmil_suite.expert import ScriptedScooper
     from veragmil_suite.recording import EpisodeRecorder, episode_metrics
 
@@ -40,7 +45,7 @@ def run_expert_episode(
     recorder = EpisodeRecorder(env)
     start = time.perf_counter()
     obs = recorder.reset()
-    out = run_until_done(
+    end = run_until_done(
         lambda o: None if expert.done else expert.executed(expert.act(o)),
         recorder.step,
         obs,
@@ -48,16 +53,15 @@ def run_expert_episode(
         env.horizon,
         success_hold_s=success_hold_s,
     )
-    info, reason, peak, stage = out["info"], out["end_reason"], out["peak_grains_in_spoon"], out["stage"]
     env.close()
-    out = episode_metrics(info, stage)
+    out = episode_metrics(end.info, end.stage)
     out.update(
         food=food,
         seed=seed,
         profile=profile,
         steps=recorder.num_steps,
-        end_reason=reason,
-        peak_grains_in_spoon=peak,
+        end_reason=end.reason,
+        peak_grains_in_spoon=end.peak_grains_in_spoon,
         wall_s=time.perf_counter() - start,
     )
     return out
