@@ -18,12 +18,14 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
+from veragmil_suite.rendering import use_headless_rendering
+
 
 def run_expert_episode(
     food: str, seed: int, profile: str = "expert", success_hold_s: float = 1.0, env_kwargs: dict | None = None
 ) -> dict:
     """One scripted episode of ``food`` with env and expert seeded by ``seed``; returns its metrics."""
-    os.environ.setdefault("MUJOCO_GL", "osmesa")
+    use_headless_rendering()
     import robosuite
 
     import veragmil_suite  # noqa: F401
