@@ -13,11 +13,14 @@ from __future__ import annotations
 
 import argparse
 import os
+import runpy
 import sys
 import time
+from pathlib import Path
 
-os.environ.setdefault("MUJOCO_GL", "osmesa")
-os.environ.setdefault("PYOPENGL_PLATFORM", os.environ["MUJOCO_GL"])
+# OSMesa whatever the display, set before robosuite is imported: veragmil_suite.rendering is run from its file, as
+# importing it through the package would import robosuite first
+runpy.run_path(str(Path(__file__).resolve().parents[1] / "veragmil_suite" / "rendering.py"))["use_headless_rendering"]()
 os.environ.setdefault("PYNPUT_BACKEND", "dummy")
 
 TARGET_RATIO = 1.7

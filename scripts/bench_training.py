@@ -15,17 +15,19 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import runpy
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-os.environ.setdefault("MUJOCO_GL", "osmesa")
-os.environ.setdefault("PYOPENGL_PLATFORM", os.environ["MUJOCO_GL"])
-os.environ.setdefault("PYNPUT_BACKEND", "dummy")
-
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG_DIR = ROOT / "configs" / "json"
+
+# OSMesa whatever the display, set before robosuite is imported: veragmil_suite.rendering is run from its file, as
+# importing it through the package would import robosuite first
+runpy.run_path(str(ROOT / "veragmil_suite" / "rendering.py"))["use_headless_rendering"]()
+os.environ.setdefault("PYNPUT_BACKEND", "dummy")
 
 
 def bench_algo(name: str, dataset: str, steps: int) -> dict:

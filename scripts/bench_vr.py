@@ -21,17 +21,20 @@ import asyncio
 import json
 import multiprocessing
 import os
+import runpy
 import time
+from pathlib import Path
 
-os.environ.setdefault("MUJOCO_GL", "osmesa")
-os.environ.setdefault("PYOPENGL_PLATFORM", os.environ["MUJOCO_GL"])
+# OSMesa whatever the display, set before robosuite is imported: veragmil_suite.rendering is run from its file, as
+# importing it through the package would import robosuite first
+runpy.run_path(str(Path(__file__).resolve().parents[1] / "veragmil_suite" / "rendering.py"))["use_headless_rendering"]()
 os.environ.setdefault("PYNPUT_BACKEND", "dummy")
 
 import numpy as np  # noqa: E402
 import robosuite  # noqa: E402
 
 import veragmil_suite  # noqa: E402, F401  (registers ScoopGranular)
-from veragmil_suite.devices import VRDevice  # noqa: E402
+from veragmil_suite.devices import VRDevice, VRServerOptions, VRStreamOptions  # noqa: E402
 from veragmil_suite.devices.vr_client import HAND, Client, controller, pose_message, ws_url  # noqa: E402
 from veragmil_suite.devices.vr_render import Renderer, depth_colormap, encode_jpeg  # noqa: E402
 
@@ -102,7 +105,7 @@ def _flood(url: str, n: int, out) -> None:
 
 def bench_messages(n: int) -> None:
     env = make("Lift")
-    device = VRDevice(env, port=0, verbose=False)
+    device = VRDevice(env, server=VRServerOptions(port=0), verbose=False)
     try:
         ctx = multiprocessing.get_context("spawn")
         out = ctx.Queue()
@@ -134,7 +137,7 @@ def bench_messages(n: int) -> None:
 # ------------------------------------------------------------------------------------------------ 3. latency
 def bench_latency(seconds: float) -> None:
     env = make("Lift")
-    device = VRDevice(env, port=0, verbose=False)
+    device = VRDevice(env, server=VRServerOptions(port=0), verbose=False)
     client = Client(device.url).connect()
     try:
         device.start_control()
@@ -191,7 +194,9 @@ def bench_stream(env_name: str, control_freq: int, seconds: float, depth: bool =
     alone = bench_env_alone(env_name, control_freq, 40)
     env = make(env_name, control_freq)
     camera = "overhead" if env_name == "ScoopGranular" else "agentview"
-    device = VRDevice(env, port=0, camera_name=camera, stream_depth=depth, verbose=False)
+    device = VRDevice(
+        env, server=VRServerOptions(port=0), stream=VRStreamOptions(depth=depth), camera_name=camera, verbose=False
+    )
     client = Client(device.url).connect()
     try:
         device.start_control()

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from helpers.vr import make_lift_env, run_loop
 
-from veragmil_suite.devices import VRDevice
+from veragmil_suite.devices import VRDevice, VRServerOptions
 from veragmil_suite.recording import open_dataset
 
 BROWSER_DIR = Path(__file__).resolve().parent / "browser"
@@ -49,7 +49,12 @@ def test_emulated_quest_in_chromium_drives_the_arm_and_sees_the_camera():
     # simulator may skip frames, and this test is about the path through the browser. iwer marks every
     # controller pose as emulatedPosition, which a real Quest does only for a controller it has lost
     device = VRDevice(
-        env, port=0, camera_name="agentview", stale_timeout=0.5, allow_emulated_position=True, verbose=False
+        env,
+        server=VRServerOptions(port=0),
+        camera_name="agentview",
+        stale_timeout=0.5,
+        allow_emulated_position=True,
+        verbose=False,
     )
     browser = subprocess.Popen(
         ["node", "e2e_vr.mjs", device.url, json.dumps([move for move, _ in MOVES])],

@@ -13,15 +13,17 @@ from helpers.recording import make_env, tiny_env_kwargs
 from helpers.vr import HAND, Client, controller, eef_pose, lockstep, make_lift_env, run_loop
 from PIL import Image
 
-from veragmil_suite.devices import VRDevice
+from veragmil_suite.devices import VRDevice, VRServerOptions
 from veragmil_suite.devices import vr_frames as F
 from veragmil_suite.devices.vr_server import CLOSE_FINISHED
+
+ANY_PORT = VRServerOptions(port=0)
 
 
 @pytest.fixture(scope="module")
 def rig():
     env = make_lift_env()
-    device = VRDevice(env, port=0, camera_name="agentview", verbose=False)
+    device = VRDevice(env, server=ANY_PORT, camera_name="agentview", verbose=False)
     yield env, device
     device.close()
     env.close()
@@ -216,7 +218,7 @@ def test_reconnect_without_restart(session):
 
 def test_the_page_is_told_the_collection_state_and_when_it_is_over():
     env = make_lift_env()
-    device = VRDevice(env, port=0, camera_name="agentview", verbose=False)
+    device = VRDevice(env, server=ANY_PORT, camera_name="agentview", verbose=False)
     client = Client(device.url).connect()
     try:
         device.progress = "episode 3 | kept 2/5 | discarded 0 | vr.hdf5"
@@ -239,7 +241,7 @@ def test_spoon_lands_on_the_held_target_in_scoop_granular():
     """ScoopGranular's default controller puts the spoon within 1 mm of where a still hand holds it (robosuite's
     kp=150 OSC stopped 1-8 mm short, held by XArm7's joint friction)."""
     env = make_env(tiny_env_kwargs(food="barley", depth=False))
-    device = VRDevice(env, port=0, verbose=False)
+    device = VRDevice(env, server=ANY_PORT, verbose=False)
     env.reset()
     device.stale_timeout = 5.0
     client = Client(device.url).connect()
@@ -358,7 +360,7 @@ def test_vr_drives_the_spoon_in_scoop_granular():
 
     env = make_env("rice", robot="XArm7", initialization_noise=None)
     env.reset()
-    device = VRDevice(env, port=0, stale_timeout=5.0, verbose=False)
+    device = VRDevice(env, server=ANY_PORT, stale_timeout=5.0, verbose=False)
     client = Client(device.url).connect()
     try:
         assert device.camera_name == "overhead" and env.action_dim == 6

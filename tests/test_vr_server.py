@@ -16,7 +16,7 @@ from helpers.vr import Client, controller, pose_message
 
 from veragmil_suite.devices import vr_tls
 from veragmil_suite.devices.vr_protocol import PoseMessage, pack_frame
-from veragmil_suite.devices.vr_server import MAX_WS_FRAME_BYTES, VRServer, is_loopback
+from veragmil_suite.devices.vr_server import MAX_WS_FRAME_BYTES, VRServer, VRServerOptions, is_loopback
 
 
 class Recorder:
@@ -33,7 +33,7 @@ class Recorder:
 @pytest.fixture
 def server():
     rec = Recorder()
-    srv = VRServer(port=0, on_pose=rec, hello_timeout=0.5, auth_failure_delay=0.0).start()
+    srv = VRServer(VRServerOptions(port=0, hello_timeout=0.5, auth_failure_delay=0.0), on_pose=rec).start()
     srv.recorder = rec
     yield srv
     srv.stop()
@@ -127,7 +127,7 @@ def test_hello_timeout(server):
 
 
 def test_pairing_token_and_lockout():
-    srv = VRServer(port=0, token="K7QM-2XPA", auth_failure_delay=0.0).start()
+    srv = VRServer(VRServerOptions(port=0, token="K7QM-2XPA", auth_failure_delay=0.0)).start()
     try:
         assert srv.requires_token
         bad = Client(srv.url, token="AAAA-AAAA").connect(wait_welcome=False)
@@ -155,7 +155,7 @@ def test_pairing_token_and_lockout():
 def test_binding_beyond_localhost_needs_a_token_and_defaults_to_https():
     assert is_loopback("127.0.0.1") and is_loopback("localhost") and is_loopback("::1")
     assert not is_loopback("0.0.0.0") and not is_loopback("192.168.1.20")
-    lan = VRServer(host="0.0.0.0")
+    lan = VRServer(VRServerOptions(host="0.0.0.0"))
     assert lan.requires_token and len(lan.token) == 9 and lan.tls
     local = VRServer()
     assert not local.requires_token and local.token is None and not local.tls
@@ -210,7 +210,7 @@ def test_status_is_throttled_to_the_newest(server):
 
 def test_a_failing_handler_is_counted_not_fatal():
     rec = Recorder(fail_on=1)
-    srv = VRServer(port=0, on_pose=rec).start()
+    srv = VRServer(VRServerOptions(port=0), on_pose=rec).start()
     try:
         c = Client(srv.url).connect()
         for i in range(3):
@@ -227,13 +227,13 @@ def test_stop_frees_the_port():
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
     for _ in range(2):
-        srv = VRServer(port=port).start()
+        srv = VRServer(VRServerOptions(port=port)).start()
         assert fetch(srv.url)[0] == 200
         srv.stop()
 
 
 def test_https_with_a_generated_certificate_that_is_kept(tmp_path):
-    srv = VRServer(port=0, tls=True, cert_dir=str(tmp_path)).start()
+    srv = VRServer(VRServerOptions(port=0, tls=True, cert_dir=str(tmp_path))).start()
     try:
         assert srv.url.startswith("https://localhost:")
         ctx = ssl.create_default_context(cafile=srv.cert)  # trust exactly the self-signed certificate
@@ -271,8 +271,8 @@ def test_a_localhost_server_answers_only_to_localhost_names(server):
 SERVER_CHILD = """
 import json, resource, sys
 resource.setrlimit(resource.RLIMIT_NOFILE, (1024, 1024))
-from veragmil_suite.devices.vr_server import VRServer
-server = VRServer(port=0, request_timeout=1.0, heartbeat_timeout=1.0).start()
+from veragmil_suite.devices.vr_server import VRServer, VRServerOptions
+server = VRServer(VRServerOptions(port=0, request_timeout=1.0, heartbeat_timeout=1.0)).start()
 print(server.port, flush=True)
 sys.stdin.readline()
 print(json.dumps(server.stats()), flush=True)

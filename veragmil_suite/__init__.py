@@ -6,13 +6,14 @@ when it is defined) and the SpoonGripper (gripper_types="SpoonGripper").
 
 import os
 
+from veragmil_suite.rendering import use_headless_rendering
+
 __version__ = "0.1.0"
 
-# Headless, MuJoCo's EGL contexts crashed at random in rollouts here while OSMesa (software) was reliable. Only a
-# default: it must precede robosuite's import, so import veragmil_suite first (or set MUJOCO_GL yourself).
+# Without a display, OSMesa by default (why: veragmil_suite.rendering). Only a default: it must precede robosuite's
+# import, so import veragmil_suite first (or set MUJOCO_GL yourself).
 if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-    os.environ.setdefault("MUJOCO_GL", "osmesa")
-    os.environ.setdefault("PYOPENGL_PLATFORM", os.environ["MUJOCO_GL"])
+    use_headless_rendering()
 
 from veragmil_suite.environments.scoop import ScoopGranular  # noqa: E402
 from veragmil_suite.foods import FOODS, TRAINING_FOODS, UNSEEN_FOODS, FoodSpec, get_food, register_food  # noqa: E402

@@ -38,6 +38,7 @@ import numpy as np
 
 from veragmil_suite.episode import SUCCESS_HOLD_S, run_until_done
 from veragmil_suite.foods import TRAINING_FOODS, UNSEEN_FOODS
+from veragmil_suite.rendering import use_headless_rendering
 
 ALL_FOODS: tuple[str, ...] = TRAINING_FOODS + UNSEEN_FOODS
 SEEN_LABEL = "seen (training)"
@@ -195,8 +196,7 @@ _POLICIES: dict = {}  # per worker process: checkpoint path -> (RolloutPolicy, c
 def _init_worker() -> None:
     """Each worker runs one episode at a time on one core: one torch thread (set when a checkpoint first imports
     torch, so expert-only workers start without it), software rendering."""
-    os.environ["MUJOCO_GL"] = "osmesa"
-    os.environ["PYOPENGL_PLATFORM"] = "osmesa"
+    use_headless_rendering(force=True)
     os.environ["VERAGMIL_TORCH_THREADS"] = "1"
     os.environ["OMP_NUM_THREADS"] = "1"
 

@@ -32,6 +32,7 @@ import numpy as np
 
 from veragmil_suite.asset_paths import config_path
 from veragmil_suite.foods import FOODS, TRAINING_FOODS, UNSEEN_FOODS, get_food
+from veragmil_suite.rendering import use_headless_rendering
 
 # robomimic configs of configs/json per algorithm of the paper (low-dim observations)
 ALGO_CONFIGS = {"bc": "bc", "bc_rnn": "bc_rnn", "bcq": "bcq"}
@@ -140,7 +141,7 @@ class PipelineSettings:
 def _run_logged(command: list[str], log_path: Path, what: str) -> float:
     """Runs a command with its output in ``log_path``; returns its wall time, raises StageError on failure."""
     env = dict(os.environ)
-    env.setdefault("MUJOCO_GL", "osmesa")
+    use_headless_rendering(environ=env)
     env.setdefault("PYNPUT_BACKEND", "dummy")
     start = time.perf_counter()
     with open(log_path, "w") as log:

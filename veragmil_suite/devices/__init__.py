@@ -1,8 +1,10 @@
-"""Teleoperation devices: ``VRDevice`` (a Meta Quest or any WebXR headset, through its browser).
+"""Teleoperation devices: ``VRDevice`` (a Meta Quest or any WebXR headset, through its browser), with the options
+of its server (``VRServerOptions``) and of its camera stream (``VRStreamOptions``).
 
 See ``README_VR.md`` beside this file for setup (USB and Wi-Fi), the controls and the message schema.
 """
 
+import importlib
 import os
 
 # robosuite.devices imports pynput for its keyboard device, which needs an X display unless told otherwise; a VR
@@ -10,13 +12,14 @@ import os
 if not os.environ.get("DISPLAY"):
     os.environ.setdefault("PYNPUT_BACKEND", "dummy")
 
-__all__ = ["VRDevice"]
+__all__ = ["VRDevice", "VRServerOptions", "VRStreamOptions"]
+
+# the module of each name, imported on first use: the filters, frames and protocol modules stay usable without
+# robosuite loaded
+_MODULES = {"VRDevice": "vr", "VRServerOptions": "vr_server", "VRStreamOptions": "vr_stream"}
 
 
 def __getattr__(name):
-    # imported on first use: the filters, frames and protocol modules stay usable without robosuite loaded
-    if name == "VRDevice":
-        from veragmil_suite.devices.vr import VRDevice
-
-        return VRDevice
+    if name in _MODULES:
+        return getattr(importlib.import_module(f"{__name__}.{_MODULES[name]}"), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -40,8 +40,8 @@ from veragmil_suite.devices.vr_controls import DEFAULT_BINDINGS, ButtonEvents
 from veragmil_suite.devices.vr_filters import PoseFilter
 from veragmil_suite.devices.vr_frames import camera_heading, mat_to_quat, mat_to_rotvec, quat_to_mat
 from veragmil_suite.devices.vr_protocol import PoseMessage
-from veragmil_suite.devices.vr_server import VRServer
-from veragmil_suite.devices.vr_stream import CameraStream
+from veragmil_suite.devices.vr_server import VRServer, VRServerOptions
+from veragmil_suite.devices.vr_stream import CameraStream, VRStreamOptions
 
 EPISODE_COMMANDS = ("keep", "discard", "reset")
 SCALE_STEP = 1.25
@@ -53,18 +53,12 @@ class VRDevice(Device):
 
     Args:
         env (RobotEnv): the environment whose arm is driven (OSC_POSE arm controller)
-        host (str): address the server binds; 127.0.0.1 (USB, ``adb reverse``) unless a Wi-Fi headset connects
-        port (int): the server's port (0: any free one, see ``url``)
-        token (str or None): pairing token; required and generated when host is not loopback
-        tls (bool or None): HTTPS; by default exactly when host is not loopback
-        cert, key, cert_dir: TLS files (a self-signed pair is made and kept in cert_dir when absent)
-        camera_name (str or None): camera streamed to the headset; None picks "overhead", then "agentview"
-        stream_width, stream_height (int): streamed RGB size
-        stream_fps (float): most streamed frames per second
-        stream_depth (bool): show the colour-mapped depth panel beside the RGB one
-        depth_range (tuple or None): metres from red to blue on the depth panel; None fits what the camera sees
-        jpeg_quality (int): 1-100
-        encoder (str): "pillow" (measured 2-3x faster on these frames, scripts/bench_vr.py) or "opencv"
+        server (VRServerOptions or None): address (``port=0``: any free one, see ``url``), pairing token, TLS
+            and timeouts of the page's server; None: its defaults (127.0.0.1:8765, for USB with ``adb reverse``)
+        stream (VRStreamOptions or None): size, frame rate, depth panel and JPEG encoding of the camera stream;
+            None: its defaults (320x240 at 30 frames/s, with depth)
+        camera_name (str or None): camera streamed to the headset, whose heading the hand's motions follow; None
+            picks "overhead", then "agentview"
         pos_sensitivity (float): end-effector metres per hand metre
         rot_sensitivity (float): end-effector radians per hand radian
         precision_factor (float): translation scale multiplier in precision mode
@@ -85,21 +79,9 @@ class VRDevice(Device):
     def __init__(
         self,
         env,
-        host: str = "127.0.0.1",
-        port: int = 8765,
-        token: str | None = None,
-        tls: bool | None = None,
-        cert: str | None = None,
-        key: str | None = None,
-        cert_dir: str | None = None,
+        server: VRServerOptions | None = None,
+        stream: VRStreamOptions | None = None,
         camera_name: str | None = None,
-        stream_width: int = 320,
-        stream_height: int = 240,
-        stream_fps: float = 30.0,
-        stream_depth: bool = True,
-        depth_range: tuple[float, float] | None = None,
-        jpeg_quality: int = 80,
-        encoder: str = "pillow",
         pos_sensitivity: float = 1.0,
         rot_sensitivity: float = 1.0,
         precision_factor: float = 0.25,
@@ -168,14 +150,9 @@ class VRDevice(Device):
         self._reset_state = 0
         self._enabled = False
 
+        stream = VRStreamOptions() if stream is None else stream
         self.server = VRServer(
-            host=host,
-            port=port,
-            token=token,
-            tls=tls,
-            cert=cert,
-            key=key,
-            cert_dir=cert_dir,
+            server,
             on_pose=self._on_pose,
             on_connect=self._on_connect,
             on_disconnect=self._on_disconnect,
@@ -183,19 +160,13 @@ class VRDevice(Device):
                 send_hz=command_hz,
                 hand=hand,
                 camera=self.camera_name,
-                stream=dict(width=stream_width, height=stream_height, fps=stream_fps),
+                stream=dict(width=stream.width, height=stream.height, fps=stream.fps),
             ),
         )
         self.stream = CameraStream(
             env,
             self.camera_name,
-            width=stream_width,
-            height=stream_height,
-            fps=stream_fps,
-            depth=stream_depth,
-            depth_range=depth_range,
-            jpeg_quality=jpeg_quality,
-            encoder=encoder,
+            stream,
             on_frame=self.server.publish_frame,
             active=lambda: self.server.connected,
         )

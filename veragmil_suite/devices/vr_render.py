@@ -6,8 +6,9 @@ thread. A thread rendering at that moment read a reversed depth buffer, or worse
 own table, its own GIL, and software rendering (osmesa) cannot slow the teleoperation loop down.
 
 The process imports only MuJoCo, numpy and an image codec (not robosuite, not this package), so this file runs
-directly as a script. Messages are pickled objects framed by a 4-byte little-endian length, on stdin (requests)
-and stdout (replies), between this process and its parent only:
+directly as a script; its parent (``vr_stream``) chooses its OpenGL platform in its environment
+(``veragmil_suite.rendering``: OSMesa unless MUJOCO_GL says otherwise). Messages are pickled objects framed by a
+4-byte little-endian length, on stdin (requests) and stdout (replies), between this process and its parent only:
 
     ("model", path)     load the model saved at path (``mj_saveModel``); reply ("model_ok", info)
     ("frame", request)  render qpos / mocap poses; reply ("frame", result)
@@ -224,8 +225,6 @@ def main() -> None:
     config = json.loads(sys.argv[1])
     requests, replies = sys.stdin.buffer, sys.stdout.buffer
     sys.stdout = sys.stderr  # a stray print must not corrupt the reply stream
-    os.environ.setdefault("MUJOCO_GL", "osmesa")
-    os.environ.setdefault("PYOPENGL_PLATFORM", os.environ["MUJOCO_GL"])
     if hasattr(os, "nice"):
         os.nice(int(config.get("nice", 0)))  # short of CPU, drop frames rather than control steps
     serve(config, requests, replies)

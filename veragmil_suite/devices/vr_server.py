@@ -29,6 +29,7 @@ import secrets
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import urlsplit
 
@@ -170,67 +171,81 @@ def _canonical_token(token: str) -> str:
     return "".join(c for c in token.upper() if c.isalnum())
 
 
+@dataclass(frozen=True)
+class VRServerOptions:
+    """How a ``VRServer`` listens and guards its connections; the defaults suit a Quest over USB (``adb reverse``).
+
+    Args:
+        host (str): address to bind; 127.0.0.1 (USB) unless a Wi-Fi headset connects (e.g. "0.0.0.0")
+        port (int): TCP port; 0 picks a free one (``VRServer.port`` after ``start()``)
+        token (str or None): pairing token; required, and generated when None, when host is not loopback
+        tls (bool or None): serve HTTPS; None: exactly when host is not loopback
+        cert, key (str or None): certificate and key files (PEM); with HTTPS and either one None, a self-signed
+            pair is made
+        cert_dir (str or None): folder where the self-signed pair is kept; None: ``vr_tls.DEFAULT_CERT_DIR``
+        status_hz (float): most status messages per second sent to the page (Hz)
+        hello_timeout (float): seconds a new WebSocket connection has to say hello
+        auth_failure_delay (float): seconds a wrong pairing token waits for its answer
+        web_dir (str or Path): folder of the page's files (``WEB_DIR``)
+        max_connections (int): open TCP connections at most (``MAX_CONNECTIONS``)
+        request_timeout (float): seconds a connection has to send its first bytes or finish a TLS handshake; also
+            the HTTP keep-alive (``REQUEST_TIMEOUT_S``)
+        heartbeat_timeout (float): seconds of silence after which a WebSocket client is taken for gone
+            (``HEARTBEAT_TIMEOUT_S``)
+    """
+
+    host: str = "127.0.0.1"
+    port: int = 8765
+    token: str | None = None
+    tls: bool | None = None
+    cert: str | None = None
+    key: str | None = None
+    cert_dir: str | None = None
+    status_hz: float = 10.0
+    hello_timeout: float = 5.0
+    auth_failure_delay: float = 0.5
+    web_dir: str | Path = WEB_DIR
+    max_connections: int = MAX_CONNECTIONS
+    request_timeout: float = REQUEST_TIMEOUT_S
+    heartbeat_timeout: float = HEARTBEAT_TIMEOUT_S
+
+
 class VRServer:
     """aiohttp server for the VR page, running its own event loop in a daemon thread.
 
     Args:
-        host (str): address to bind; 127.0.0.1 by default (use adb reverse for USB)
-        port (int): TCP port; 0 picks a free one (see ``port`` after ``start()``)
-        token (str or None): pairing token; required (and generated when None) when host is not loopback
-        tls (bool or None): serve HTTPS; None means "when host is not loopback"
-        cert, key (str or None): certificate and key files; a self-signed pair is made when absent
-        cert_dir (str or None): where the self-signed pair is kept
+        options (VRServerOptions or None): address, security and timeouts; None: the defaults
         on_pose (callable): ``on_pose(msg: PoseMessage, recv_time: float)`` called in the server thread
         on_connect, on_disconnect (callable): called in the server thread with the connection number
         config (dict): sent to the page in the welcome message
-        status_hz (float): most status messages per second
-        hello_timeout (float): seconds a new connection has to say hello
-        auth_failure_delay (float): seconds a wrong token waits for its answer
-        max_connections (int): open TCP connections at most (MAX_CONNECTIONS)
-        request_timeout (float): seconds a connection has to send its first bytes or finish a TLS handshake; also
-            the HTTP keep-alive (REQUEST_TIMEOUT_S)
-        heartbeat_timeout (float): seconds of silence after which a WebSocket client is taken for gone
-            (HEARTBEAT_TIMEOUT_S)
     """
 
     def __init__(
         self,
-        host: str = "127.0.0.1",
-        port: int = 8765,
-        token: str | None = None,
-        tls: bool | None = None,
-        cert: str | None = None,
-        key: str | None = None,
-        cert_dir: str | None = None,
+        options: VRServerOptions | None = None,
         on_pose: Callable[[PoseMessage, float], None] | None = None,
         on_connect: Callable[[int], None] | None = None,
         on_disconnect: Callable[[int], None] | None = None,
         config: dict | None = None,
-        status_hz: float = 10.0,
-        hello_timeout: float = 5.0,
-        auth_failure_delay: float = 0.5,
-        web_dir: str | Path = WEB_DIR,
-        max_connections: int = MAX_CONNECTIONS,
-        request_timeout: float = REQUEST_TIMEOUT_S,
-        heartbeat_timeout: float = HEARTBEAT_TIMEOUT_S,
     ):
-        self.host = host
-        self.requested_port = port
-        self.requires_token = token is not None or not is_loopback(host)
-        self.token = (token or new_token()) if self.requires_token else None
-        self.tls = (not is_loopback(host)) if tls is None else tls
-        self.cert, self.key, self.cert_dir = cert, key, cert_dir
+        options = VRServerOptions() if options is None else options
+        self.host = options.host
+        self.requested_port = options.port
+        self.requires_token = options.token is not None or not is_loopback(options.host)
+        self.token = (options.token or new_token()) if self.requires_token else None
+        self.tls = (not is_loopback(options.host)) if options.tls is None else options.tls
+        self.cert, self.key, self.cert_dir = options.cert, options.key, options.cert_dir
         self.on_pose = on_pose
         self.on_connect = on_connect
         self.on_disconnect = on_disconnect
         self.config = dict(config or {})
-        self.status_interval = 1.0 / status_hz
-        self.hello_timeout = hello_timeout
-        self.auth_failure_delay = auth_failure_delay
-        self.web_dir = Path(web_dir)
-        self.max_connections = int(max_connections)
-        self.request_timeout = float(request_timeout)
-        self.heartbeat_timeout = float(heartbeat_timeout)
+        self.status_interval = 1.0 / options.status_hz
+        self.hello_timeout = options.hello_timeout
+        self.auth_failure_delay = options.auth_failure_delay
+        self.web_dir = Path(options.web_dir)
+        self.max_connections = int(options.max_connections)
+        self.request_timeout = float(options.request_timeout)
+        self.heartbeat_timeout = float(options.heartbeat_timeout)
         self.open_connections = 0  # TCP connections admitted and not yet closed (the server thread's)
         self._tcp_server: asyncio.AbstractServer | None = None
         self.port: int | None = None

@@ -23,12 +23,14 @@ import tempfile
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from veragmil_suite.devices.vr_protocol import PANELS_RGB, PANELS_RGB_DEPTH, pack_frame
 from veragmil_suite.devices.vr_render import ENCODERS, receive, send
+from veragmil_suite.rendering import use_headless_rendering
 
 LOG = logging.getLogger(__name__)
 
@@ -40,19 +42,38 @@ STILL_FRAME_REPEAT_S = 0.5
 RENDER_NICENESS = 10  # the renderer yields the CPU to the simulation: the environment must keep real time
 
 
+@dataclass(frozen=True)
+class VRStreamOptions:
+    """What a ``CameraStream`` sends to the headset: image size, frame rate, depth panel and JPEG encoding.
+
+    Args:
+        width, height (int): size of the RGB panel in pixels (the depth panel, when shown, doubles the width)
+        fps (float): most frames per second
+        depth (bool): show the colour-mapped depth panel beside the RGB one (the operator can toggle it)
+        depth_range (tuple or None): metres from red (near) to blue (far) on the depth panel; None: what the camera
+            sees in the first frame of each model (robust percentiles), so colours keep their meaning through an
+            episode
+        jpeg_quality (int): JPEG quality, 1-100
+        encoder (str): JPEG encoder, "pillow" (measured 2-3x faster on these frames, scripts/bench_vr.py) or
+            "opencv"
+    """
+
+    width: int = 320
+    height: int = 240
+    fps: float = 30.0
+    depth: bool = True
+    depth_range: tuple[float, float] | None = None
+    jpeg_quality: int = 80
+    encoder: str = "pillow"
+
+
 class CameraStream:
-    """Renders one camera of a robosuite env at up to ``fps`` and hands each frame to ``on_frame``.
+    """Renders one camera of a robosuite env at up to ``options.fps`` and hands each frame to ``on_frame``.
 
     Args:
         env: the robosuite environment (its ``sim`` is read, never written)
         camera_name (str): the camera to stream ("overhead" in ScoopGranular, "agentview" in robosuite's tasks)
-        width, height (int): size of the RGB panel (the depth panel, when shown, doubles the width)
-        fps (float): most frames per second
-        depth (bool): show the depth panel (can be toggled while running)
-        depth_range (tuple or None): metres mapped onto the colour scale; None: what the camera sees in the
-            first frame of each model (robust percentiles), so colours keep their meaning through an episode
-        jpeg_quality (int): 1-100
-        encoder (str): "pillow" (faster on these frames, scripts/bench_vr.py) or "opencv"
+        options (VRStreamOptions or None): size, frame rate, depth panel and encoding; None: the defaults
         on_frame (callable): ``on_frame(frame: bytes)`` with a ``vr_protocol`` binary frame, from the stream thread
         active (callable): frames are made only while this returns True (someone is watching)
         keep_depth (bool): keep the last depth map in metres (``last_depth_m``), for inspection
@@ -62,29 +83,25 @@ class CameraStream:
         self,
         env,
         camera_name: str,
-        width: int = 320,
-        height: int = 240,
-        fps: float = 30.0,
-        depth: bool = True,
-        depth_range: tuple[float, float] | None = None,
-        jpeg_quality: int = 80,
-        encoder: str = "pillow",
+        options: VRStreamOptions | None = None,
         on_frame: Callable[[bytes], None] | None = None,
         active: Callable[[], bool] | None = None,
         keep_depth: bool = False,
     ):
-        if encoder not in ENCODERS:
+        options = VRStreamOptions() if options is None else options
+        if options.encoder not in ENCODERS:
             raise ValueError(f"encoder must be one of {ENCODERS}")
         if env.sim.model.camera_name2id(camera_name) < 0:
             raise ValueError(f"no camera {camera_name!r} in the environment")
         self.env = env
         self.camera_name = camera_name
-        self.width, self.height = int(width), int(height)
-        self.fps = float(fps)
-        self.depth = bool(depth)
+        self.width, self.height = int(options.width), int(options.height)
+        self.fps = float(options.fps)
+        self.depth = bool(options.depth)  # what is shown now: the operator toggles it
+        depth_range = options.depth_range
         self.depth_range = None if depth_range is None else (float(depth_range[0]), float(depth_range[1]))
-        self.jpeg_quality = int(jpeg_quality)
-        self.encoder = encoder
+        self.jpeg_quality = int(options.jpeg_quality)
+        self.encoder = options.encoder
         self.on_frame = on_frame
         self.active = active or (lambda: True)
         self.keep_depth = keep_depth
@@ -150,10 +167,13 @@ class CameraStream:
             depth_range=self.depth_range,
             nice=RENDER_NICENESS,
         )
+        environ = dict(os.environ)
+        use_headless_rendering(environ=environ)  # the renderer imports MuJoCo alone, without this package
         self._proc = subprocess.Popen(
             [sys.executable, str(WORKER), json.dumps(config)],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
+            env=environ,
         )
         self._model = None
 

@@ -284,12 +284,11 @@ def make_operator(args, env):
         except (OSError, ImportError) as e:
             raise SystemExit(f"veragmil-collect: no SpaceMouse found through hidapi ({e})") from None
     else:
-        from veragmil_suite.devices import VRDevice
+        from veragmil_suite.devices import VRDevice, VRServerOptions
 
         device = VRDevice(
             env,
-            host=args.vr_host,
-            port=args.vr_port,
+            server=VRServerOptions(host=args.vr_host, port=args.vr_port),
             pos_sensitivity=args.pos_sensitivity,
             rot_sensitivity=args.rot_sensitivity,
             allow_emulated_position=args.vr_allow_emulated,
@@ -425,7 +424,9 @@ def main(argv: list[str] | None = None) -> int:
     if not os.environ.get("DISPLAY"):
         os.environ.setdefault("PYNPUT_BACKEND", "dummy")  # robosuite.devices imports pynput, which wants X
     if args.cameras:
-        os.environ.setdefault("MUJOCO_GL", "osmesa")
+        from veragmil_suite.rendering import use_headless_rendering
+
+        use_headless_rendering()
 
     import robosuite
 

@@ -200,7 +200,9 @@ def replay_main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     if args.output is None and not args.use_actions:
         p.error("give --output (a video) and/or --use-actions (a replay check)")
-    os.environ.setdefault("MUJOCO_GL", "osmesa")
+    from veragmil_suite.rendering import use_headless_rendering
+
+    use_headless_rendering()
     height, width = (args.size * 2)[:2]
     try:
         results = replay_demos(
@@ -249,7 +251,9 @@ def render_obs_main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     if Path(args.output).exists() and not args.force:
         return _fail("veragmil-render-obs", DatasetError(f"{args.output} exists (use --force to overwrite it)"))
-    os.environ.setdefault("MUJOCO_GL", "osmesa")
+    from veragmil_suite.rendering import use_headless_rendering
+
+    use_headless_rendering()
     height, width = (args.size * 2)[:2]
     try:
         n = render_observations(args.dataset, args.output, args.cameras, height, width, args.depth, args.demos)

@@ -19,6 +19,7 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from veragmil_suite.episode import SUCCESS_HOLD_S, run_until_done
+from veragmil_suite.rendering import use_headless_rendering
 
 
 def run_expert_episode(
@@ -29,7 +30,7 @@ def run_expert_episode(
     env_kwargs: dict | None = None,
 ) -> dict:
     """One scripted episode of ``food`` with env and expert seeded by ``seed``; returns its metrics."""
-    os.environ.setdefault("MUJOCO_GL", "osmesa")
+    use_headless_rendering()
     import robosuite
 
     import veragmil_suite  # noqa: F401
