@@ -1,6 +1,6 @@
 """VRDevice in robosuite's teleoperation loop, driven by a scripted WebSocket client (no headset, no browser).
 
-Most tests replay the hand in step with the simulation (``vr_helpers.lockstep``), so the result does not depend on
+Most tests replay the hand in step with the simulation (``helpers.vr.lockstep``), so the result does not depend on
 how loaded the machine is; the staleness and streaming tests run in real time, as they must.
 """
 

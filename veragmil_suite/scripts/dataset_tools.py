@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from pathlib import Path
 
@@ -26,6 +25,7 @@ from veragmil_suite.datasets import (
     split_dataset,
 )
 from veragmil_suite.recording import DatasetError
+from veragmil_suite.rendering import use_headless_rendering
 from veragmil_suite.scripts.cli import positive_int
 
 
@@ -200,8 +200,6 @@ def replay_main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     if args.output is None and not args.use_actions:
         p.error("give --output (a video) and/or --use-actions (a replay check)")
-    from veragmil_suite.rendering import use_headless_rendering
-
     use_headless_rendering()
     height, width = (args.size * 2)[:2]
     try:
@@ -251,8 +249,6 @@ def render_obs_main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     if Path(args.output).exists() and not args.force:
         return _fail("veragmil-render-obs", DatasetError(f"{args.output} exists (use --force to overwrite it)"))
-    from veragmil_suite.rendering import use_headless_rendering
-
     use_headless_rendering()
     height, width = (args.size * 2)[:2]
     try:
