@@ -22,6 +22,9 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+# robomimic's run_epoch times these parts of each gradient step: reading the batch from the dataset, moving it to
+# tensors, the forward and backward pass with the optimizer step, and logging
+EPOCH_PARTS = ("Data_Loading", "Process_Batch", "Train_Batch", "Log_Info")
 CONFIG_DIR = ROOT / "configs" / "json"
 
 # OSMesa whatever the display, set before robosuite is imported: veragmil_suite.rendering is run from its file, as
@@ -59,9 +62,11 @@ def bench_algo(name: str, dataset: str, steps: int) -> dict:
     loader = DataLoader(trainset, batch_size=config.train.batch_size, shuffle=True, drop_last=True)
     train_utils.run_epoch(model=model, data_loader=loader, epoch=1, num_steps=2)
     start = time.perf_counter()
-    train_utils.run_epoch(model=model, data_loader=loader, epoch=1, num_steps=steps)
+    log = train_utils.run_epoch(model=model, data_loader=loader, epoch=1, num_steps=steps)
     elapsed = time.perf_counter() - start
     batch, seq = config.train.batch_size, config.train.seq_length
+    # robomimic's own timers (minutes summed over the epoch): where an epoch's time goes
+    parts = {part: log[f"Time_{part}"] * 60.0 for part in EPOCH_PARTS}
     return dict(
         config=name,
         batch=batch,
@@ -69,6 +74,7 @@ def bench_algo(name: str, dataset: str, steps: int) -> dict:
         steps_per_s=steps / elapsed,
         samples_per_s=steps * batch / elapsed,
         frames_per_s=steps * batch * seq / elapsed,
+        shares={part: seconds / elapsed for part, seconds in parts.items()},
     )
 
 
@@ -112,12 +118,14 @@ def main(argv: list[str] | None = None) -> None:
         f"\ntraining throughput, CPU ({os.cpu_count()} cores, load average {load_before:.1f} -> "
         f"{os.getloadavg()[0]:.1f}), robomimic {_version('robomimic')}"
     )
-    print("| config | torch threads | batch | seq | gradient steps/s | samples/s | frames/s |")
-    print("|---|---|---|---|---|---|---|")
+    parts = " | ".join(f"% {p.lower().replace('_', ' ')}" for p in EPOCH_PARTS)
+    print(f"| config | torch threads | batch | seq | gradient steps/s | samples/s | frames/s | {parts} |")
+    print("|---|---|---|---|---|---|---|" + "---|" * len(EPOCH_PARTS))
     for r in rows:
+        shares = " | ".join(f"{100 * r['shares'][p]:.0f}" for p in EPOCH_PARTS)
         print(
             f"| {r['config']} | {r['threads']} | {r['batch']} | {r['seq']} | {r['steps_per_s']:.2f} | "
-            f"{r['samples_per_s']:.0f} | {r['frames_per_s']:.0f} |"
+            f"{r['samples_per_s']:.0f} | {r['frames_per_s']:.0f} | {shares} |"
         )
 
 

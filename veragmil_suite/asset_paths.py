@@ -34,3 +34,10 @@ def config_path(name: str) -> str:
         accepted = sorted(p.stem for p in configs_root().glob("*.json"))
         raise FileNotFoundError(f"no robomimic config {name!r} under {configs_root()}; accepted: {accepted}")
     return str(path)
+
+
+def pretrained_checkpoint(name: str) -> Path | None:
+    """A robomimic checkpoint shipped in the checkout's ``models/checkpoints`` (None in an installed wheel, which
+    leaves them out: they are results, remade by the command in that folder's README)."""
+    path = Path(__file__).resolve().parent.parent / "models" / "checkpoints" / name
+    return path if path.is_file() else None

@@ -2,8 +2,9 @@
 veragmil-quickstart: the main job on a small default, headless.
 
 Records a few scripted demonstrations of each training food, trains robomimic's BC on them briefly, evaluates the
-checkpoint and the scripted expert itself on a seen food (rice) and an unseen one (peas), and prints the
-paper's tables. Every stage is one of our console programs; larger runs: veragmil-study (README).
+checkpoint, the scripted expert itself and the shipped BC checkpoint trained at the study's size (30 demos per
+food, 50k gradient steps; models/checkpoints/README.md) on a seen food (rice) and an unseen one (peas), and prints
+the paper's tables. Every stage is one of our console programs; larger runs: veragmil-study (README).
 """
 
 from __future__ import annotations
@@ -11,8 +12,13 @@ from __future__ import annotations
 import argparse
 import sys
 
+from veragmil_suite.asset_paths import pretrained_checkpoint
 from veragmil_suite.pipeline import PipelineSettings
 from veragmil_suite.scripts.study import add_pipeline_arguments, run
+
+# BC trained by veragmil-study on 30 expert demos per training food for 50k gradient steps (models/checkpoints)
+PRETRAINED = "bc_expert_30demos_50k.pth"
+PRETRAINED_NAME = "pretrained BC 50k"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -21,8 +27,13 @@ def main(argv: list[str] | None = None) -> int:
         description=__doc__.split("\n\n")[1].strip(),
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
+    shipped = pretrained_checkpoint(PRETRAINED)
     defaults = PipelineSettings(
-        output_dir="runs/quickstart", profiles=["expert"], algos=["bc"], eval_foods=["rice", "peas"]
+        output_dir="runs/quickstart",
+        profiles=["expert"],
+        algos=["bc"],
+        eval_foods=["rice", "peas"],
+        agents={PRETRAINED_NAME: str(shipped)} if shipped else {},
     )
     add_pipeline_arguments(parser, defaults)
     return run(parser, argv)

@@ -71,8 +71,10 @@ def add_pipeline_arguments(p: argparse.ArgumentParser, defaults: PipelineSetting
         "--agent",
         action="append",
         metavar="[NAME=]SPEC",
-        default=None,
-        help=f"also evaluate this agent beside the run's own (repeat for more): SPEC is {SPEC_HELP}",
+        default=argparse.SUPPRESS,
+        help=f"also evaluate this agent beside the run's own (repeat for more): SPEC is {SPEC_HELP} (default: "
+        + (", ".join(f"{name}={spec}" for name, spec in defaults.agents.items()) or "none")
+        + ")",
     )
 
 
@@ -92,7 +94,7 @@ def settings_from_args(args: argparse.Namespace) -> PipelineSettings:
         horizon=args.horizon,
         n_grains=args.n_grains,
         seed=args.seed,
-        agents=agent_columns(args.agent, defaults=getattr(args, "default_agents", {})),
+        agents=agent_columns(getattr(args, "agent", None), defaults=args.default_agents),
     )
 
 
