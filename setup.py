@@ -43,7 +43,11 @@ setup(
         "imageio-ffmpeg>=0.4.9",
         "matplotlib>=3.7",
     ],
-    extras_require={"test": ["pytest>=7", "ruff>=0.5"]},
+    extras_require={
+        "test": ["pytest>=7", "ruff>=0.5"],
+        # the Unitree G1 (robots="G1FixedLowerBody" or "G1ArmsOnly"); robosuite imports it when it is installed
+        "humanoid": ["robosuite-models==1.0.0"],
+    },
     entry_points={
         "console_scripts": [
             "veragmil-collect=veragmil_suite.scripts.collect_human_demonstrations:main",

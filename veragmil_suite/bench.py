@@ -2,11 +2,12 @@
 
     python -m veragmil_suite.bench                    # every food, 1x/2x/4x its default grain count
     python -m veragmil_suite.bench --foods rice --scales 1 --steps 40
+    python -m veragmil_suite.bench --robot XArm7,G1FixedLowerBody --foods rice --scales 1   # robots side by side
 
 Real time at 20 Hz control is 20 env steps/s (RTF 1.0). "bare mj_step" steps the same compiled scene with no
 controller and no robosuite, so env/bare shows what robosuite's Python costs; "vs Lift" compares with robosuite's
-Lift task on the same robot. The robot holds still (zero delta actions), the pile at rest: the steady state of
-most of an episode. Run on an otherwise idle machine.
+Lift task on the same robot (the G1 with robosuite's default two-arm controller and hands). The robot holds still
+(zero delta actions), the pile at rest: the steady state of most of an episode. Run on an otherwise idle machine.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import robosuite
 
 import veragmil_suite  # noqa: F401  (registers ScoopGranular)
 from veragmil_suite.foods import FOODS, TRAINING_FOODS
+from veragmil_suite.humanoid import check_robot
 
 REAL_TIME_STEPS_PER_S = 20.0  # the default 20 Hz control rate
 AIM_RTF = 2.0  # the environment issue's aim: twice real time...
@@ -71,7 +73,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--foods", default=",".join(FOODS), help="comma-separated foods (default: all)")
     parser.add_argument("--scales", default="1,2,4", help="grain counts as multiples of each food's default")
     parser.add_argument("--steps", type=int, default=60, help="env steps timed per configuration")
-    parser.add_argument("--robot", default="XArm7")
+    parser.add_argument(
+        "--robot", default="XArm7", help="comma-separated robots, each benched in turn (G1FixedLowerBody: the G1)"
+    )
     args = parser.parse_args(argv)
     foods = [f.strip() for f in args.foods.split(",") if f.strip()]
     unknown = [f for f in foods if f not in FOODS]
@@ -82,12 +86,24 @@ def main(argv: list[str] | None = None) -> None:
     except ValueError:
         parser.error(f"--scales takes comma-separated numbers, got {args.scales!r}")
 
-    lift = robosuite.make(
-        "Lift", robots=args.robot, has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False
-    )
-    lift_rate = _env_rate(lift, args.steps)
+    robots = [r.strip() for r in args.robot.split(",") if r.strip()]
+    for robot in robots:
+        try:
+            check_robot(robot)
+        except ValueError as e:
+            parser.error(str(e))
+    for i, robot in enumerate(robots):
+        if i:
+            print()
+        _bench_robot(robot, foods, scales, args.steps)
+
+
+def _bench_robot(robot: str, foods: list[str], scales: list[float], steps: int) -> None:
+    """The table of one robot: robosuite's Lift with it, then each food at each scale."""
+    lift = robosuite.make("Lift", robots=robot, has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False)
+    lift_rate = _env_rate(lift, steps)
     lift.close()
-    print(f"robosuite Lift ({args.robot}): {lift_rate:7.1f} steps/s  RTF {lift_rate / REAL_TIME_STEPS_PER_S:5.2f}")
+    print(f"robosuite Lift ({robot}): {lift_rate:7.1f} steps/s  RTF {lift_rate / REAL_TIME_STEPS_PER_S:5.2f}")
     print()
     columns = ("grains", "steps/s", "RTF", "vs Lift", "bare mj", "env/bare", "contacts")
     header = f"{'food':<10}" + "".join(f" {c:>8}" for c in columns)
@@ -97,10 +113,10 @@ def main(argv: list[str] | None = None) -> None:
     for food in foods:
         for scale in scales:
             n = max(1, int(round(FOODS[food].default_grains * scale)))
-            env = make_env(food, n, args.robot)
-            rate = _env_rate(env, args.steps)
+            env = make_env(food, n, robot)
+            rate = _env_rate(env, steps)
             contacts = env.sim.data.ncon
-            bare = _bare_rate(env, args.steps)
+            bare = _bare_rate(env, steps)
             env.close()
             flag = " *" if food in TRAINING_FOODS and scale == 1 and rate < REAL_TIME_STEPS_PER_S else ""
             if food in TRAINING_FOODS and scale == 1:

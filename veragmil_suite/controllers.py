@@ -6,7 +6,10 @@ import copy
 
 import numpy as np
 from robosuite.controllers import load_composite_controller_config, load_part_controller_config
+from robosuite.controllers.composite.composite_controller import CompositeController, register_composite_controller
 from robosuite.controllers.parts.arm.ik import SUPPORTED_IK_ROBOTS
+
+from veragmil_suite.humanoid import SPOON_ARM, humanoid_layout
 
 ARM_CONTROLLERS = ("OSC_POSE", "IK_POSE")
 
@@ -30,6 +33,101 @@ def osc_speed_per_offset(kp, kd, control_period_s: float):
     return kp / (kd + kp * control_period_s / 2.0)
 
 
+# A five-joint arm (the G1's) cannot hold all six pose coordinates: OSC_POSE leaves the rotation about the world's
+# vertical (the spoon's heading) free, which the task does not need, and holds position and tilt
+FREE_HEADING_KP = 0.0
+
+
+def leave_heading_free(controller) -> None:
+    """
+    Makes an OSC_POSE controller ignore the rotation about the world's vertical when its stiffness there is zero.
+
+    With the Jacobian's heading row left in, OSC still asked the five-joint arm for zero heading acceleration, a
+    sixth demand it cannot meet beside position and tilt: its least-squares compromise stalled the spoon short of the
+    post-scoop pose. Without the row, position and tilt are five coordinates for five joints, met exactly (with the
+    coupled operational-space inertia, uncouple_pos_ori false, set by load_scoop_controller_config).
+    """
+    if np.asarray(controller.kp, dtype=float)[5] != FREE_HEADING_KP or getattr(controller, "heading_free", False):
+        return
+    update = controller.update
+
+    def update_without_heading(force=False):
+        update(force)
+        controller.J_ori[2] = 0.0
+        controller.J_full[5] = 0.0
+
+    controller.update = update_without_heading
+    controller.heading_free = True
+
+
+# Stiffness of the parts that hold a fixed joint pose (robosuite's JOINT_POSITION kp, in 1/s^2: its torques are the
+# mass matrix times kp times the error): the G1's other arm and torso stay within a milliradian while the spoon arm
+# moves (robosuite's own torso default)
+HELD_PART_KP = 1000.0
+
+
+@register_composite_controller
+class SpoonArmController(CompositeController):
+    """
+    robosuite's BASIC composite controller with only the spoon arm in the action: every other part (a humanoid's
+    other arm, its torso) holds the joint pose given in the config's ``held_qpos``, by part name. The action is
+    then the spoon arm's alone (6-D for OSC_POSE), as on a single-arm robot, and a reset or a replayed state cannot
+    move what the other parts hold.
+    """
+
+    name = "SPOON_ARM"
+
+    @property
+    def held_qpos(self) -> dict[str, np.ndarray]:
+        held = (self.composite_controller_specific_config or {}).get("held_qpos", {})
+        return {part: np.asarray(q, dtype=float) for part, q in held.items() if part in self.part_controllers}
+
+    def setup_action_split_idx(self):
+        start = 0
+        held = self.held_qpos
+        for part_name, controller in self.part_controllers.items():
+            if part_name in self.grippers:
+                width = self.grippers[part_name].dof
+            else:
+                width = 0 if part_name in held else controller.control_dim
+            self._action_split_indexes[part_name] = (start, start + width)
+            start += width
+
+    def set_goal(self, all_action):
+        held = self.held_qpos
+        for part_name, controller in self.part_controllers.items():
+            if part_name in held:
+                continue
+            start, end = self._action_split_indexes[part_name]
+            action = all_action[start:end]
+            if part_name in self.grippers:
+                action = self.grippers[part_name].format_action(action)
+            controller.set_goal(action)
+
+    def reset(self):
+        super().reset()
+        for part_name, qpos in self.held_qpos.items():
+            controller = self.part_controllers[part_name]
+            controller.goal_qpos = qpos.copy()
+            if controller.interpolator is not None:
+                controller.interpolator.set_goal(controller.goal_qpos)
+
+    @property
+    def action_limits(self):
+        low, high = [], []
+        held = self.held_qpos
+        for part_name, controller in self.part_controllers.items():
+            if part_name in held:
+                continue
+            if part_name in self.grippers:
+                dof = self.grippers[part_name].dof
+                part_low, part_high = [-1.0] * dof, [1.0] * dof
+            else:
+                part_low, part_high = controller.control_limits
+            low, high = np.concatenate([low, part_low]), np.concatenate([high, part_high])
+        return low, high
+
+
 # robosuite 1.5's IK_POSE is differential IK on MuJoCo's site Jacobian: nothing in it is robot-specific but its
 # 7-entry null-space gains, so it drives every 7-DoF arm; robosuite's list of IK robots predates that (pybullet URDFs)
 IK_ROBOTS = ("XArm7", "Panda", "Sawyer", "IIWA", "Kinova3", "Jaco")
@@ -42,9 +140,14 @@ def load_scoop_controller_config(controller: str = "OSC_POSE", robot: str = "XAr
     the paper used, for 7-DoF arms: its actions are the spoon's target displacement in metres and rotation in
     radians, about world axes, clipped to 0.02 m and 0.05 rad (env.action_spec). Either gives 6-D actions: the
     spoon has no gripper DoF.
+
+    A humanoid (veragmil_suite.humanoid: the G1) gets our SPOON_ARM composite instead: OSC_POSE on its right (spoon)
+    arm, the same 6-D action, with its heading component (index 5) unused since the five-joint arm leaves the
+    heading free, while the left arm and the torso hold the layout's pose under JOINT_POSITION control.
     """
     if controller not in ARM_CONTROLLERS:
         raise ValueError(f"Unknown arm controller {controller!r}; accepted: {', '.join(ARM_CONTROLLERS)}")
+    layout = humanoid_layout(robot)
     if controller == "IK_POSE" and robot not in IK_ROBOTS:
         raise ValueError(
             f"robosuite's IK_POSE controller needs a 7-DoF arm ({', '.join(IK_ROBOTS)}), not {robot!r}; "
@@ -75,5 +178,16 @@ def load_scoop_controller_config(controller: str = "OSC_POSE", robot: str = "XAr
     # single-arm robots: robosuite's arm is "right"; the other parts of BASIC (left, torso, head, base, legs)
     # would only be dropped again with a warning each
     gripper = config["body_parts"]["right"].get("gripper")
-    config["body_parts"] = {"right": dict(part, **({"gripper": gripper} if gripper else {}))}
+    config["body_parts"] = {SPOON_ARM: dict(part, **({"gripper": gripper} if gripper else {}))}
+    if layout is not None:
+        config["type"] = SpoonArmController.name
+        config["body_parts"][SPOON_ARM]["kp"] = [OSC_KP] * 5 + [FREE_HEADING_KP]
+        config["body_parts"][SPOON_ARM]["uncouple_pos_ori"] = False
+        for held_part in layout.held_qpos:
+            held = load_part_controller_config(default_controller="JOINT_POSITION")
+            held.update(kp=HELD_PART_KP, input_type="absolute", interpolation=None)
+            config["body_parts"][held_part] = held
+        config["composite_controller_specific_configs"] = {
+            "held_qpos": {part: [float(v) for v in q] for part, q in layout.held_qpos.items()}
+        }
     return config

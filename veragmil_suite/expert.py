@@ -19,6 +19,7 @@ import robosuite.utils.transform_utils as T
 
 from veragmil_suite.controllers import osc_speed_per_offset
 from veragmil_suite.environments.scoop import POST_SCOOP_EEF_ROT, PRE_SCOOP_EEF_ROT
+from veragmil_suite.kinematics import align_heading
 
 # While lifting and carrying, the spoon's tip is raised a little past level, as people do, so the load rests against
 # the back of the spoon's bowl instead of sliding off its tip.
@@ -200,7 +201,14 @@ class ScriptedScooper:
         self.dt = 1.0 / env.control_freq
         # action units: a command of 1 moves the goal by output_max (m, rad) per control step
         self.action_scale = np.asarray(self.controller.output_max, dtype=float)
-        self.speed_to_offset = 1.0 / osc_speed_per_offset(self.controller.kp, self.controller.kd, self.dt)
+        # axes the controller does not drive (zero stiffness): a five-joint arm's heading (veragmil_suite.humanoid)
+        kp = np.broadcast_to(np.asarray(self.controller.kp, dtype=float), (6,))
+        self.driven = kp > 0
+        self.free_heading = not self.driven[5]
+        speed = osc_speed_per_offset(
+            np.where(self.driven, kp, 1.0), np.where(self.driven, self.controller.kd, 1.0), self.dt
+        )
+        self.speed_to_offset = np.where(self.driven, 1.0 / speed, 0.0)
         self.reset()
 
     # -------------------------------------------------------------------------------------------------------- #
@@ -245,7 +253,7 @@ class ScriptedScooper:
         phase = PHASES[self.phase_index]
         target_pos, target_rot = self._waypoint(phase.name, obs)
         pos_err = target_pos - eef_pos
-        rot_err = T.quat2axisangle(T.mat2quat(target_rot @ eef_rot.T))
+        rot_err = self._rotation_error(target_rot, eef_rot)
         tol = self.profile.waypoint_tol_scale
         reached = np.linalg.norm(pos_err) <= tol * phase.pos_tol and np.linalg.norm(rot_err) <= tol * phase.rot_tol
         timed_out = self.phase_steps * self.dt >= phase.max_time_s * self.profile.phase_time_scale
@@ -256,7 +264,7 @@ class ScriptedScooper:
             phase = PHASES[self.phase_index]
             target_pos, target_rot = self._waypoint(phase.name, obs)
             pos_err = target_pos - eef_pos
-            rot_err = T.quat2axisangle(T.mat2quat(target_rot @ eef_rot.T))
+            rot_err = self._rotation_error(target_rot, eef_rot)
         self.phase_steps += 1
         if phase.name == "hold":
             self.hold_steps += 1
@@ -295,6 +303,15 @@ class ScriptedScooper:
         return np.clip(action + self.injected, -1.0, 1.0)
 
     # -------------------------------------------------------------------------------------------------------- #
+
+    def _rotation_error(self, target_rot: np.ndarray, eef_rot: np.ndarray) -> np.ndarray:
+        """Axis-angle from the spoon's attitude to the target's (world frame); with a free heading, to the target
+        turned to the spoon's heading, and nothing about the vertical (the arm cannot hold it)."""
+        if not self.free_heading:
+            return T.quat2axisangle(T.mat2quat(target_rot @ eef_rot.T))
+        err = T.quat2axisangle(T.mat2quat(align_heading(target_rot, eef_rot) @ eef_rot.T))
+        err[2] = 0.0
+        return err
 
     def _waypoint(self, name: str, obs: dict) -> tuple[np.ndarray, np.ndarray]:
         """Spoon (eef) target of a phase, from the bowl's rim and shape: robust to where the bowl stands."""

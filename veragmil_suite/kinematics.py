@@ -11,6 +11,18 @@ IK_POS_TOLERANCE_M = 1e-4
 IK_ROT_TOLERANCE_RAD = 1e-3
 
 
+def align_heading(target_rot: np.ndarray, current_rot: np.ndarray) -> np.ndarray:
+    """``target_rot`` turned about the world's vertical to the heading closest to ``current_rot``'s.
+
+    A five-joint arm controls a pose up to its heading: the turn that brings the target nearest (in the Frobenius
+    norm) is Rz(psi) with tan psi = (B10 - B01) / (B00 + B11), B = current target^T.
+    """
+    b = np.asarray(current_rot) @ np.asarray(target_rot).T
+    psi = np.arctan2(b[1, 0] - b[0, 1], b[0, 0] + b[1, 1])
+    c, s = np.cos(psi), np.sin(psi)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ target_rot
+
+
 def solve_pose_ik(
     model: mujoco.MjModel,
     joint_names: list[str],
@@ -18,15 +30,26 @@ def solve_pose_ik(
     target_pos: np.ndarray,
     target_rot: np.ndarray,
     q_init: np.ndarray,
+    free_heading: bool = False,
+    other_qpos: dict[str, float] | None = None,
 ) -> np.ndarray:
     """Joint positions that put ``site_name`` at ``target_pos`` with orientation ``target_rot`` (3x3).
 
     Solved once per robot and kept, so its speed does not matter; the caller's simulation is not touched.
 
+    Args:
+        free_heading: match the orientation up to a turn about the world's vertical (see align_heading): a
+            five-joint arm cannot match all six pose coordinates
+        other_qpos: positions of joints not solved for, by name (the rest stay at the model's qpos0)
+
     Raises:
         RuntimeError: the pose is out of the robot's reach.
     """
     data = mujoco.MjData(model)
+    for name, value in (other_qpos or {}).items():
+        data.qpos[model.joint(name).qposadr[0]] = value
+    # the rows of the error driven to zero: all six, or all but the rotation about the vertical
+    rows = np.array([True] * 5 + [not free_heading])
     qadr = np.array([model.joint(n).qposadr[0] for n in joint_names])
     dadr = np.array([model.joint(n).dofadr[0] for n in joint_names])
     lo, hi = model.jnt_range[[model.joint(n).id for n in joint_names]].T
@@ -36,12 +59,14 @@ def solve_pose_ik(
     jacp = np.zeros((3, model.nv))
     jacr = np.zeros((3, model.nv))
     target_quat = np.zeros(4)
-    mujoco.mju_mat2Quat(target_quat, np.asarray(target_rot, dtype=float).ravel())
+    target_rot = np.asarray(target_rot, dtype=float)
     for _ in range(IK_MAX_ITERATIONS):
         data.qpos[qadr] = q
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
         err_pos = target_pos - data.site_xpos[site]
+        site_rot = data.site_xmat[site].reshape(3, 3)
+        mujoco.mju_mat2Quat(target_quat, (align_heading(target_rot, site_rot) if free_heading else target_rot).ravel())
         site_quat = np.zeros(4)
         mujoco.mju_mat2Quat(site_quat, data.site_xmat[site])
         conj = np.zeros(4)
@@ -50,12 +75,14 @@ def solve_pose_ik(
         mujoco.mju_mulQuat(diff, target_quat, conj)
         err_rot = np.zeros(3)
         mujoco.mju_quat2Vel(err_rot, diff, 1.0)
+        if free_heading:
+            err_rot[2] = 0.0
         if np.linalg.norm(err_pos) < IK_POS_TOLERANCE_M and np.linalg.norm(err_rot) < IK_ROT_TOLERANCE_RAD:
             return q
         mujoco.mj_jacSite(model, data, jacp, jacr, site)
-        jac = np.vstack([jacp[:, dadr], jacr[:, dadr]])
-        err = np.concatenate([err_pos, err_rot])
-        dq = jac.T @ np.linalg.solve(jac @ jac.T + IK_DAMPING * np.eye(6), err)
+        jac = np.vstack([jacp[:, dadr], jacr[:, dadr]])[rows]
+        err = np.concatenate([err_pos, err_rot])[rows]
+        dq = jac.T @ np.linalg.solve(jac @ jac.T + IK_DAMPING * np.eye(len(err)), err)
         q = q + dq
         q[limited] = np.clip(q[limited], lo[limited], hi[limited])
     raise RuntimeError(

@@ -8,12 +8,13 @@ import mujoco
 import numpy as np
 import robosuite.utils.transform_utils as T
 from robosuite.environments.manipulation.manipulation_env import ManipulationEnv
-from robosuite.robots import ROBOT_CLASS_MAPPING
+from robosuite.utils.mjcf_utils import array_to_string, find_elements, new_element
 from robosuite.utils.observables import Observable, sensor
 
-from veragmil_suite.controllers import load_scoop_controller_config
+from veragmil_suite.controllers import leave_heading_free, load_scoop_controller_config
 from veragmil_suite.fast_control import use_block_mass_matrix
 from veragmil_suite.foods import FoodSpec, get_food
+from veragmil_suite.humanoid import SPOON_ARM, HumanoidLayout, check_robot, humanoid_layout, self_contact_excludes
 from veragmil_suite.kinematics import solve_pose_ik
 from veragmil_suite.models.arena import ScoopArena
 from veragmil_suite.models.bowl import DEFAULT_BOWL_SHAPE, Bowl
@@ -46,11 +47,14 @@ class ScoopGranular(ManipulationEnv):
 
     Args:
         robots (str or list of str): Specification for specific robot arm to be instantiated within this env
-            (e.g: "XArm7"). Note: Must be a single single-arm robot!
+            (e.g: "XArm7"). Note: Must be a single single-arm robot, or the Unitree G1 ("G1FixedLowerBody",
+            "G1ArmsOnly", with robosuite-models), which the task places at the table (veragmil_suite.humanoid): it
+            scoops with its right hand, and its left arm and torso hold still.
         env_configuration (str): Specifies how to position the robots within the environment (default is "default").
         controller_configs (str or dict): composite controller config. None gives OSC_POSE (see
             veragmil_suite.controllers.load_scoop_controller_config, which also offers robosuite's IK_POSE).
-        gripper_types (str): end-effector; default "SpoonGripper"
+        gripper_types (str): end-effector; default "SpoonGripper" (a two-armed robot holds it in its right hand and
+            nothing in its left)
         base_types (str): robot base type; "default" uses the robot's own
         initialization_noise (dict or "default"): joint noise of the initial (pre-scoop) configuration
         food (str or FoodSpec): a catalog food name (veragmil_suite.foods.FOODS) or a custom FoodSpec
@@ -140,10 +144,11 @@ class ScoopGranular(ManipulationEnv):
     ):
         self.food: FoodSpec = get_food(food)
         for robot in [robots] if isinstance(robots, str) else list(robots):
-            if robot not in ROBOT_CLASS_MAPPING:
-                raise ValueError(
-                    f"Unknown robot {robot!r}; robosuite's robots: {', '.join(sorted(ROBOT_CLASS_MAPPING))}"
-                )
+            check_robot(robot)
+        robot_name = robots if isinstance(robots, str) else robots[0]
+        self.humanoid: HumanoidLayout | None = humanoid_layout(robot_name)
+        if self.humanoid is not None and isinstance(gripper_types, str):
+            gripper_types = [[gripper_types, None]]  # per arm (right, left) of the one robot
         if n_grains is not None and (not isinstance(n_grains, (int, np.integer)) or n_grains <= 0):
             raise ValueError(f"n_grains must be a positive integer or None (the food's default), got {n_grains!r}")
         self.n_grains = int(n_grains) if n_grains is not None else self.food.default_grains
@@ -183,6 +188,9 @@ class ScoopGranular(ManipulationEnv):
         self.table_full_size = table_full_size
         self.table_offset = np.array((0, 0, 0.8))
         self.bowl_nominal_xy = np.zeros(2)
+        if self.humanoid is not None:
+            # a humanoid stands at the table's edge and reaches a bowl near it (veragmil_suite.humanoid)
+            self.bowl_nominal_xy = np.array([-table_full_size[0] / 2 + self.humanoid.bowl_from_table_edge_m, 0.0])
 
         # reward configuration
         self.reward_scale = reward_scale
@@ -198,7 +206,6 @@ class ScoopGranular(ManipulationEnv):
         self._physics_error = ""
 
         if controller_configs is None:
-            robot_name = robots if isinstance(robots, str) else robots[0]
             controller_configs = load_scoop_controller_config("OSC_POSE", robot=robot_name)
 
         super().__init__(
@@ -302,8 +309,15 @@ class ScoopGranular(ManipulationEnv):
         super()._load_model()
 
         # Adjust base pose accordingly
-        xpos = self.robots[0].robot_model.base_xpos_offset["table"](self.table_full_size[0])
-        self.robots[0].robot_model.set_base_xpos(xpos)
+        robot_model = self.robots[0].robot_model
+        xpos = robot_model.base_xpos_offset["table"](self.table_full_size[0])
+        if self.humanoid is not None:
+            # within the arm's reach of the bowl, on the robot's own floor height
+            xpos = (*(self.bowl_nominal_xy + self.humanoid.base_from_bowl_m), xpos[2])
+            gripper = self.robots[0].gripper[SPOON_ARM]
+            mount = find_elements(robot_model.worldbody, "body", {"name": gripper.root_body}, return_first=True)
+            mount.set("quat", array_to_string(self.humanoid.spoon_mount_quat_wxyz))
+        robot_model.set_base_xpos(xpos)
 
         mujoco_arena = ScoopArena(
             table_full_size=self.table_full_size, table_offset=self.table_offset, bowl_xy=self.bowl_nominal_xy
@@ -326,6 +340,9 @@ class ScoopGranular(ManipulationEnv):
             solver_options=self.solver_options,
             fast_rendering=self.fast_rendering,
         )
+        if self.humanoid is not None:
+            for body1, body2 in self_contact_excludes(robot_model.worldbody):
+                self.model.contact.append(new_element("exclude", name=None, body1=body1, body2=body2))
 
     @property
     def solver_options(self) -> dict:
@@ -392,11 +409,11 @@ class ScoopGranular(ManipulationEnv):
         self.grain_qpos_adr = np.array([model.get_joint_qpos_addr(n)[0] for n in self.grain_pile.joint_names])
         self.grain_qvel_adr = np.array([model.get_joint_qvel_addr(n)[0] for n in self.grain_pile.joint_names])
         self._match_loaded_pile()
-        gripper = self.robots[0].gripper["right"]
+        gripper = self.robots[0].gripper[SPOON_ARM]
         self.spoon_site_id = model.site_name2id(gripper.important_sites["spoon_frame"])
         self.spoon_geom_ids = np.array([model.geom_name2id(n) for n in gripper.important_geoms["spoon"]])
         self.grain_geom_ids = np.flatnonzero(np.isin(model.geom_bodyid, self.grain_body_ids))
-        self.eef_site_id = self.robots[0].eef_site_id["right"]
+        self.eef_site_id = self.robots[0].eef_site_id[SPOON_ARM]
         self.grain_volumes_m3 = self.grain_pile.volumes_m3
         if self.min_portion_cm3 is not None:
             self.min_portion_m3 = self.min_portion_cm3 * M3_PER_CM3
@@ -412,6 +429,7 @@ class ScoopGranular(ManipulationEnv):
         self.robots[0].init_qpos = self._pre_scoop_qpos()
         super()._reset_internal()
         use_block_mass_matrix(self.robots[0])
+        leave_heading_free(self.robots[0].part_controllers[SPOON_ARM])
         self._metrics_time = None
         self._success_time = None
         self._physics_error = ""
@@ -447,12 +465,17 @@ class ScoopGranular(ManipulationEnv):
         self.settled_max_speed = pile.max_speed_m_s
 
     def _pre_scoop_qpos(self) -> np.ndarray:
-        """Joint configuration that puts the spoon at its pre-scoop pose above the nominal bowl (cached)."""
+        """
+        Joint configuration (of all the robot's joints) that puts the spoon at its pre-scoop pose above the nominal
+        bowl (cached). A humanoid solves for its spoon arm alone, with the heading free (its arm has five joints),
+        and its other parts take the pose their controllers hold.
+        """
         robot = self.robots[0]
+        model = robot.robot_model
         # everything the pose depends on: the arm, what it holds, and where the bowl's rim is
         key = (
-            type(robot.robot_model).__name__,
-            type(robot.gripper["right"]).__name__,
+            type(model).__name__,
+            type(robot.gripper[SPOON_ARM]).__name__,
             repr(self.bowl_shape),
             tuple(self.pre_scoop_offset),
             tuple(self.table_full_size),
@@ -461,15 +484,50 @@ class ScoopGranular(ManipulationEnv):
         )
         if key not in _PRE_SCOOP_CACHE:
             target_pos = self._nominal_rim_center() + self.pre_scoop_offset
-            _PRE_SCOOP_CACHE[key] = solve_pose_ik(
-                self.sim.model._model,
-                joint_names=robot.robot_model.joints,
-                site_name=robot.gripper["right"].important_sites["grip_site"],
-                target_pos=target_pos,
-                target_rot=PRE_SCOOP_EEF_ROT,
-                q_init=np.array(robot.robot_model.init_qpos, dtype=float),
-            )
+            site = robot.gripper[SPOON_ARM].important_sites["grip_site"]
+            if self.humanoid is None:
+                _PRE_SCOOP_CACHE[key] = solve_pose_ik(
+                    self.sim.model._model,
+                    joint_names=model.joints,
+                    site_name=site,
+                    target_pos=target_pos,
+                    target_rot=PRE_SCOOP_EEF_ROT,
+                    q_init=np.array(model.init_qpos, dtype=float),
+                )
+            else:
+                held = self._held_joint_qpos()
+                arm = self._spoon_arm_joints()
+                q_arm = solve_pose_ik(
+                    self.sim.model._model,
+                    joint_names=arm,
+                    site_name=site,
+                    target_pos=target_pos,
+                    target_rot=PRE_SCOOP_EEF_ROT,
+                    q_init=np.array(self.humanoid.arm_ik_start, dtype=float),
+                    free_heading=True,
+                    other_qpos=held,
+                )
+                held.update(zip(arm, q_arm))
+                _PRE_SCOOP_CACHE[key] = np.array([held[name] for name in model.joints])
         return _PRE_SCOOP_CACHE[key].copy()
+
+    def _spoon_arm_joints(self) -> list[str]:
+        """The spoon arm's joint names (robosuite lists the right arm's first and splits the arm joints evenly)."""
+        robot = self.robots[0]
+        joints = robot.robot_model.arm_joints
+        return list(joints[: len(joints) // len(robot.arms)])
+
+    def _held_joint_qpos(self) -> dict[str, float]:
+        """A humanoid's held joint positions by joint name: the other arm's and the torso's (the layout's)."""
+        robot = self.robots[0]
+        model = robot.robot_model
+        split = len(model.arm_joints) // len(robot.arms)
+        joints = {"left": list(model.arm_joints[split:]), "torso": list(model.torso_joints)}
+        return {
+            name: float(value)
+            for part, values in self.humanoid.held_qpos.items()
+            for name, value in zip(joints[part], values, strict=True)
+        }
 
     def _nominal_rim_center(self) -> np.ndarray:
         return np.array(
@@ -689,6 +747,17 @@ class ScoopGranular(ManipulationEnv):
             OrderedDict: Dictionary mapping observable names to its corresponding Observable object
         """
         observables = super()._setup_observables()
+
+        robot = self.robots[0]
+        if len(robot.arms) > 1:
+            # a two-armed robot's spoon arm under the single-arm names, so the expert, policies and robomimic
+            # configs read the spoon's pose under the same keys on every robot (robosuite adds right_/left_)
+            pf = robot.robot_model.naming_prefix
+            for name in ("eef_pos", "eef_quat", "eef_quat_site"):
+                source = observables[f"{pf}{SPOON_ARM}_{name}"]
+                observables[f"{pf}{name}"] = Observable(
+                    name=f"{pf}{name}", sensor=source._sensor, sampling_rate=self.control_freq
+                )
 
         if self.use_object_obs:
             modality = "object"

@@ -49,7 +49,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--food", choices=sorted(FOODS), default="rice")
     p.add_argument("--episodes", type=int, default=1, help="demonstrations to save")
     p.add_argument("--output", required=True, help="HDF5 file (appended to when it exists)")
-    p.add_argument("--robot", default="XArm7")
+    p.add_argument(
+        "--robot",
+        default="XArm7",
+        help="robosuite robot with the spoon: a single arm, or the Unitree G1 (G1FixedLowerBody, G1ArmsOnly; "
+        "needs robosuite-models, the package's humanoid extra)",
+    )
     p.add_argument(
         "--controller",
         default="OSC_POSE",

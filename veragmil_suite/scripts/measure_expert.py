@@ -5,6 +5,7 @@ Episode s is a fresh environment made with seed s, so its bowl is not that of ve
 (an environment reset with that seed).
 
     python -m veragmil_suite.scripts.measure_expert --foods rice buckwheat barley pasta --episodes 10 --workers 2
+    python -m veragmil_suite.scripts.measure_expert --robot G1FixedLowerBody --episodes 10 --workers 1
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ def run_expert_episode(
     profile: str = "expert",
     success_hold_s: float = SUCCESS_HOLD_S,
     env_kwargs: dict | None = None,
+    robot: str = "XArm7",
 ) -> dict:
     """One scripted episode of ``food`` with env and expert seeded by ``seed``; returns its metrics."""
     use_headless_rendering()
@@ -38,7 +40,7 @@ def run_expert_episode(
     from veragmil_suite.recording import EpisodeRecorder, episode_metrics
 
     kwargs = dict(
-        robots="XArm7", food=food, has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False, seed=seed
+        robots=robot, food=food, has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False, seed=seed
     )
     kwargs.update(env_kwargs or {})
     env = robosuite.make("ScoopGranular", **kwargs)
@@ -60,6 +62,7 @@ def run_expert_episode(
         food=food,
         seed=seed,
         profile=profile,
+        robot=kwargs["robots"],
         steps=recorder.num_steps,
         end_reason=end.reason,
         peak_grains_in_spoon=end.peak_grains_in_spoon,
@@ -96,10 +99,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--episodes", type=int, default=10, help="episodes per food (seeds first-seed...)")
     p.add_argument("--first-seed", type=int, default=0)
     p.add_argument("--profile", choices=sorted(PROFILES), default="expert")
+    p.add_argument("--robot", default="XArm7", help="robosuite robot (G1FixedLowerBody: see veragmil_suite.humanoid)")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     p.add_argument("--json", default=None, help="also write every episode and the summary to this file")
     args = p.parse_args(argv)
-    jobs = [(f, s, args.profile) for s in range(args.first_seed, args.first_seed + args.episodes) for f in args.foods]
+    seeds = range(args.first_seed, args.first_seed + args.episodes)
+    jobs = [(f, s, args.profile, SUCCESS_HOLD_S, None, args.robot) for s in seeds for f in args.foods]
     results = []
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
         for r in pool.map(run_expert_episode, *zip(*jobs)):
@@ -112,7 +117,7 @@ def main(argv: list[str] | None = None) -> int:
                 flush=True,
             )
     summary = summarize(results)
-    print(f"\nprofile {args.profile}, {args.episodes} episodes per food")
+    print(f"\n{args.robot}, profile {args.profile}, {args.episodes} episodes per food")
     print("food        success  spilled(pieces)  spilled(cm3)  spill%  in spoon  time(s)")
     for food, s in summary.items():
         t = "n/a" if s["mean_completion_time_s"] is None else f"{s['mean_completion_time_s']:.2f}"
@@ -123,7 +128,7 @@ def main(argv: list[str] | None = None) -> int:
         )
     if args.json:
         with open(args.json, "w") as f:
-            json.dump(dict(profile=args.profile, episodes=results, summary=summary), f, indent=2)
+            json.dump(dict(robot=args.robot, profile=args.profile, episodes=results, summary=summary), f, indent=2)
     return 0
 
 
