@@ -12,6 +12,7 @@ from helpers.env import grain_positions
 from helpers.env import make_env as make_robosuite_env
 
 import veragmil_suite
+from veragmil_suite.controllers import load_scoop_controller_config
 from veragmil_suite.episode import SUCCESS_HOLD_S
 from veragmil_suite.expert import ScriptedScooper
 from veragmil_suite.recording import DemoWriter, check_schema, demo_names, env_meta, open_dataset, provenance
@@ -155,7 +156,10 @@ def test_a_gymnasium_episode_is_recorded_in_our_schema(tmp_path):
     env.close()
 
     with open_dataset(path) as f:
-        assert check_schema(f)["env_kwargs"]["food"] == "pasta"
+        env_kwargs = check_schema(f)["env_kwargs"]
+        assert env_kwargs["food"] == "pasta"
+        # the controller the episode was driven with, as veragmil-collect stores it
+        assert env_kwargs["controller_configs"] == load_scoop_controller_config("OSC_POSE", robot="XArm7")
         assert demo_names(f) == ["demo_0"]
         demo = f["data/demo_0"]
         assert demo.attrs["num_samples"] == 8 and demo.attrs["seed"] == 3

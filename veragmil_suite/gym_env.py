@@ -25,6 +25,7 @@ from gymnasium import spaces
 from robosuite.wrappers.gym_wrapper import GymWrapper
 
 from veragmil_suite import robomimic_obs
+from veragmil_suite.controllers import load_scoop_controller_config
 from veragmil_suite.environments.scoop import ScoopGranular
 from veragmil_suite.episode import SUCCESS_HOLD_S, SuccessHold
 from veragmil_suite.foods import FoodSpec
@@ -91,6 +92,9 @@ class ScoopGranularGymEnv(GymWrapper):
             use_camera_obs=pixels,
         )
         kwargs.update(env_kwargs)
+        if kwargs.get("controller_configs") is None:
+            # the env's own default, spelled out: datasets store the controller they were driven with
+            kwargs["controller_configs"] = load_scoop_controller_config("OSC_POSE", robot=robots)
         # the robosuite.make arguments (JSON-serializable with a catalog food): recording.env_meta's input
         self.env_kwargs = kwargs
         env = robosuite.make(ScoopGranular.__name__, **kwargs)
