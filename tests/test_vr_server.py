@@ -199,6 +199,16 @@ def test_only_the_newest_frame_is_sent(server):
     c.close()
 
 
+def test_a_timed_frame_is_stamped_as_it_is_sent(server):
+    c = Client(server.url).connect()
+    published = time.monotonic()
+    server.publish_frame(pack_frame(b"\xff\xd8jpeg", 1, 0.05, 320, 240, 1, dict(step=1, published=published)))
+    assert wait_for(lambda: c.frames)
+    received, header = c.frames[0]
+    assert published <= header["timing"]["sent"] <= received and c.last_jpeg == b"\xff\xd8jpeg"
+    c.close()
+
+
 def test_status_is_throttled_to_the_newest(server):
     c = Client(server.url).connect()
     for i in range(200):
