@@ -19,7 +19,8 @@ $(STAMP): setup.py
 	$(BIN)/pip install -q --upgrade pip
 	# torch 2.13.0 is the CPU wheel; torchvision 0.28.0 is the release made beside it
 	$(BIN)/pip install -q torch==2.13.0 torchvision==0.28.0
-	$(BIN)/pip install -q -e ".[test]"
+	# the ray extra: --ray and tests/test_ray.py
+	$(BIN)/pip install -q -e ".[test,ray]"
 	if [ -f tests/browser/package.json ]; then (cd tests/browser && npm ci --no-audit --no-fund); fi
 	touch $(STAMP)
 

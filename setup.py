@@ -7,6 +7,8 @@ from setuptools import find_packages, setup
 # Recorded demonstrations replay bit-exactly only on the MuJoCo that recorded them, and robosuite 1.5.2
 # breaks with mujoco >= 3.12: one exact version is pinned.
 MUJOCO_VERSION = "3.3.7"
+# the Ray the tests ran with: one version on the driver and every node of a cluster (Ray's own requirement)
+RAY_VERSION = "2.60.0"
 
 # models/assets stays at the repository's top level and is installed as the package data of
 # veragmil_suite.assets (one package per folder), so a non-editable install finds it from any directory.
@@ -45,7 +47,8 @@ setup(
         "imageio-ffmpeg>=0.4.9",
         "matplotlib>=3.7",
     ],
-    extras_require={"test": ["pytest>=7", "ruff>=0.5"]},
+    # ray: --ray of veragmil-collect, veragmil-evaluate and veragmil-study (veragmil_suite.distributed)
+    extras_require={"test": ["pytest>=7", "ruff>=0.5"], "ray": [f"ray=={RAY_VERSION}"]},
     entry_points={
         "console_scripts": [
             "veragmil-collect=veragmil_suite.scripts.collect_human_demonstrations:main",
