@@ -33,6 +33,8 @@ setup(
         "robosuite==1.5.2",
         f"mujoco=={MUJOCO_VERSION}",
         "robomimic==0.3.0",
+        # the Gymnasium API (veragmil_suite.gym_env); robosuite's GymWrapper imports it
+        "gymnasium==1.4.0",
         "torch>=2.0",
         "h5py>=3.8",
         "numpy>=1.24,<2",
