@@ -65,6 +65,9 @@ class PipelineSettings:
     ``demos_per_food`` and ``eval_steps`` may list several values (learning curves): each demo count trains its
     own model on the first N demos of each food, and each model is evaluated at every step count of
     ``eval_steps`` (gradient steps, multiples of ``steps_per_epoch``; by default only at the end of training).
+    ``algo_epochs`` (algorithm -> epochs) gives an algorithm its own budget instead of ``epochs``: BC-RNN costs 7x
+    BC's time per gradient step. Each algorithm is evaluated at the ``eval_steps`` its training reaches, and one
+    with its own budget at its end too.
     ``agents`` (name -> agent SPEC of veragmil_suite.evaluation) are evaluated beside the run's own, on the same
     bowls: a pretrained checkpoint, another operator profile, a recorded dataset.
     """
@@ -78,6 +81,7 @@ class PipelineSettings:
     epochs: int = 20
     steps_per_epoch: int = 100
     eval_steps: list[int] | None = None
+    algo_epochs: dict[str, int] = field(default_factory=dict)
     episodes: int = 3
     processes: int = 2
     seed: int = 0
@@ -105,8 +109,14 @@ class PipelineSettings:
                 raise ValueError(f"{name} must be a positive integer, got {getattr(self, name)!r}")
         if not self.demos_per_food or self.demos_per_food[0] < 1:
             raise ValueError(f"demos_per_food must be positive integers, got {self.demos_per_food!r}")
-        total = self.epochs * self.steps_per_epoch
-        steps = sorted(set(int(k) for k in (self.eval_steps or [total])))
+        unknown = sorted(set(self.algo_epochs) - set(ALGO_CONFIGS))
+        if unknown:
+            raise ValueError(f"algo_epochs names unknown algorithm(s) {unknown}; accepted: {sorted(ALGO_CONFIGS)}")
+        for algo, epochs in self.algo_epochs.items():
+            if int(epochs) < 1:
+                raise ValueError(f"algo_epochs of {algo} must be a positive integer, got {epochs!r}")
+        total = max(self.total_steps_of(algo) for algo in self.algos)
+        steps = sorted(set(int(k) for k in (self.eval_steps or [self.total_steps])))
         bad = [k for k in steps if k < 1 or k > total or k % self.steps_per_epoch]
         if bad:
             raise ValueError(
@@ -128,11 +138,29 @@ class PipelineSettings:
     def total_steps(self) -> int:
         return self.epochs * self.steps_per_epoch
 
+    def epochs_of(self, algo: str) -> int:
+        return int(self.algo_epochs.get(algo, self.epochs))
+
+    def total_steps_of(self, algo: str) -> int:
+        return self.epochs_of(algo) * self.steps_per_epoch
+
+    def steps_of(self, algo: str) -> list[int]:
+        """The gradient steps at which ``algo``'s checkpoints are evaluated."""
+        total = self.total_steps_of(algo)
+        own_end = {total} if algo in self.algo_epochs else set()
+        return sorted({k for k in self.eval_steps if k <= total} | own_end)
+
+    @property
+    def sweeps_steps(self) -> bool:
+        """Whether the run's checkpoints are evaluated at more than one step count."""
+        return len({k for algo in self.algos for k in self.steps_of(algo)}) > 1
+
     def model_label(self, profile: str, algo: str, demos_per_food: int, steps: int) -> str:
-        """A trained checkpoint's column: profile and algorithm, plus demos and steps when the run sweeps them."""
+        """A trained checkpoint's column: profile and algorithm, plus demos and steps when the run sweeps them
+        (or its algorithms train for different budgets)."""
         label = f"{profile} {ALGO_LABELS[algo]}"
         label += f" {demos_per_food} demos" if len(self.demos_per_food) > 1 else ""
-        label += f" {_steps_label(steps)} steps" if len(self.eval_steps) > 1 else ""
+        label += f" {_steps_label(steps)} steps" if self.sweeps_steps else ""
         return label
 
     def own_agents(self) -> list[str]:
@@ -143,7 +171,7 @@ class PipelineSettings:
                 self.model_label(profile, algo, n, k)
                 for algo in self.algos
                 for n in self.demos_per_food
-                for k in self.eval_steps
+                for k in self.steps_of(algo)
             ]
         return names
 
@@ -515,17 +543,17 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True):
             note(f"record {profile}", seconds or None)
             for algo in settings.algos:
                 for n in counts:
-                    name = f"{profile}_{algo}_{n}demos_{settings.total_steps}steps"
+                    name = f"{profile}_{algo}_{n}demos_{settings.total_steps_of(algo)}steps"
                     config = training_config(
                         algo,
                         dataset,
                         out / "runs",
                         name,
-                        settings.epochs,
+                        settings.epochs_of(algo),
                         settings.steps_per_epoch,
                         seed=settings.seed + 1,
                         filter_key=demo_mask(n),
-                        save_epochs=[k // settings.steps_per_epoch for k in settings.eval_steps],
+                        save_epochs=[k // settings.steps_per_epoch for k in settings.steps_of(algo)],
                     )
                     runs.append(dict(profile=profile, algo=algo, demos_per_food=n, config=config))
         checkpoints = _train_runs(runs, settings, out / "runs", address, say, note)
@@ -539,7 +567,7 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True):
             for run in (r for r in runs if r["profile"] == profile):
                 saved = checkpoints[run["config"]["experiment"]["name"]]
                 algo, n = run["algo"], run["demos_per_food"]
-                for k in settings.eval_steps:
+                for k in settings.steps_of(algo):
                     label = settings.model_label(profile, algo, n, k)
                     agents[label] = str(saved[k // settings.steps_per_epoch])
                     points.append(dict(agent=label, profile=profile, algo=algo, demos_per_food=n, steps=k))
@@ -564,7 +592,7 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True):
         )
     if result.config["episodes_run"]:  # a fully journaled evaluation keeps the time of the run that did it
         note("evaluate", time.perf_counter() - start)
-    if len(settings.demos_per_food) > 1 or len(settings.eval_steps) > 1:
+    if len(settings.demos_per_food) > 1 or settings.sweeps_steps:
         write_learning_curves(result, points, out / "eval")
     return result
 
@@ -579,14 +607,15 @@ def _train_runs(runs: list[dict], settings: PipelineSettings, work_dir: Path, ad
         name = config["experiment"]["name"]
         found = finished_training(config, work_dir)
         if found is not None:
-            say(f"skipping training {name}: its checkpoints are there ({found[settings.epochs].parent})")
+            last = int(config["train"]["num_epochs"])
+            say(f"skipping training {name}: its checkpoints are there ({found[last].parent})")
             checkpoints[name] = found
         else:
             todo.append(run)
 
     def announced(todo: list[dict]):
         for run in todo:
-            steps = f"{settings.epochs} x {settings.steps_per_epoch}"
+            steps = f"{run['config']['train']['num_epochs']} x {settings.steps_per_epoch}"
             dataset = Path(run["config"]["train"]["data"]).name
             label = ALGO_LABELS[run["algo"]]
             say(f"training {label} on {run['demos_per_food']} demos per food of {dataset} ({steps} gradient steps)")
