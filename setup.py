@@ -39,6 +39,7 @@ setup(
         "gymnasium==1.4.0",
         "torch>=2.0",
         "h5py>=3.8",
+        # robosuite 1.5.2 requires mink==0.0.5, which requires numpy<2 (stated so the resolver's pick is no surprise)
         "numpy>=1.24,<2",
         "hidapi>=0.14",
         "aiohttp>=3.9",
