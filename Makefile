@@ -30,7 +30,8 @@ quickstart: setup
 test: setup
 	$(BIN)/ruff check veragmil_suite tests scripts
 	$(BIN)/ruff format --check veragmil_suite tests scripts
-	$(BIN)/python -m pytest -q tests
+	$(BIN)/python -m pytest -q -n 2 -m "not realtime" tests
+	$(BIN)/python -m pytest -q -m realtime tests
 
 lint: setup
 	$(BIN)/ruff check veragmil_suite tests scripts

@@ -49,7 +49,7 @@ setup(
         "matplotlib>=3.7",
     ],
     # ray: --ray of veragmil-collect, veragmil-evaluate and veragmil-study (veragmil_suite.distributed)
-    extras_require={"test": ["pytest>=7", "ruff>=0.5"], "ray": [f"ray=={RAY_VERSION}"]},
+    extras_require={"test": ["pytest>=7", "pytest-xdist==3.8.0", "ruff>=0.5"], "ray": [f"ray=={RAY_VERSION}"]},
     entry_points={
         "console_scripts": [
             "veragmil-collect=veragmil_suite.scripts.collect_human_demonstrations:main",

@@ -36,7 +36,8 @@ def _missing() -> str | None:
     return None
 
 
-pytestmark = pytest.mark.skipif(_missing() is not None, reason=_missing() or "")
+# real time: make test runs these alone, after the rest (see conftest.py)
+pytestmark = [pytest.mark.realtime, pytest.mark.skipif(_missing() is not None, reason=_missing() or "")]
 
 # hand moves in the XR frame (x right, y up, z toward the operator) and where they must take the end-effector:
 # agentview looks back at the robot (along -x), so the image's right is +y and up is +z

@@ -17,6 +17,9 @@ from veragmil_suite.devices import VRDevice, VRServerOptions
 from veragmil_suite.devices import vr_frames as F
 from veragmil_suite.devices.vr_server import CLOSE_FINISHED
 
+# real time (staleness, heartbeats, timeouts): make test runs these alone, after the rest (see conftest.py)
+pytestmark = pytest.mark.realtime
+
 ANY_PORT = VRServerOptions(port=0)
 
 
