@@ -18,6 +18,9 @@ from veragmil_suite.devices import vr_tls
 from veragmil_suite.devices.vr_protocol import PoseMessage, pack_frame
 from veragmil_suite.devices.vr_server import MAX_WS_FRAME_BYTES, VRServer, VRServerOptions, is_loopback
 
+# real time (staleness, heartbeats, timeouts): make test runs these alone, after the rest (see conftest.py)
+pytestmark = pytest.mark.realtime
+
 
 class Recorder:
     def __init__(self, fail_on=None):
@@ -283,8 +286,6 @@ import json, resource, sys
 resource.setrlimit(resource.RLIMIT_NOFILE, (1024, 1024))
 from veragmil_suite.devices.vr_server import VRServer, VRServerOptions
 
-# real time (staleness, heartbeats, timeouts): make test runs these alone, after the rest (see conftest.py)
-pytestmark = pytest.mark.realtime
 server = VRServer(VRServerOptions(port=0, request_timeout=1.0, heartbeat_timeout=1.0)).start()
 print(server.port, flush=True)
 sys.stdin.readline()
