@@ -19,8 +19,8 @@ $(STAMP): setup.py
 	$(BIN)/pip install -q --upgrade pip
 	# torch 2.13.0 is the CPU wheel; torchvision 0.28.0 is the release made beside it
 	$(BIN)/pip install -q torch==2.13.0 torchvision==0.28.0
-	# humanoid: robosuite-models, the Unitree G1 (tests/test_g1.py)
-	$(BIN)/pip install -q -e ".[test,humanoid]"
+	# extras: ray (--ray, tests/test_ray.py), humanoid (robosuite-models, the Unitree G1, tests/test_g1.py)
+	$(BIN)/pip install -q -e ".[test,ray,humanoid]"
 	if [ -f tests/browser/package.json ]; then (cd tests/browser && npm ci --no-audit --no-fund); fi
 	touch $(STAMP)
 
@@ -30,7 +30,8 @@ quickstart: setup
 test: setup
 	$(BIN)/ruff check veragmil_suite tests scripts
 	$(BIN)/ruff format --check veragmil_suite tests scripts
-	$(BIN)/python -m pytest -q tests
+	$(BIN)/python -m pytest -q -n 2 -m "not realtime" tests
+	$(BIN)/python -m pytest -q -m realtime tests
 
 lint: setup
 	$(BIN)/ruff check veragmil_suite tests scripts

@@ -7,6 +7,8 @@ from setuptools import find_packages, setup
 # Recorded demonstrations replay bit-exactly only on the MuJoCo that recorded them, and robosuite 1.5.2
 # breaks with mujoco >= 3.12: one exact version is pinned.
 MUJOCO_VERSION = "3.3.7"
+# the Ray the tests ran with: one version on the driver and every node of a cluster (Ray's own requirement)
+RAY_VERSION = "2.60.0"
 
 # models/assets stays at the repository's top level and is installed as the package data of
 # veragmil_suite.assets (one package per folder), so a non-editable install finds it from any directory.
@@ -33,8 +35,11 @@ setup(
         "robosuite==1.5.2",
         f"mujoco=={MUJOCO_VERSION}",
         "robomimic==0.3.0",
+        # the Gymnasium API (veragmil_suite.gym_env); robosuite's GymWrapper imports it
+        "gymnasium==1.4.0",
         "torch>=2.0",
         "h5py>=3.8",
+        # robosuite 1.5.2 requires mink==0.0.5, which requires numpy<2 (stated so the resolver's pick is no surprise)
         "numpy>=1.24,<2",
         "hidapi>=0.14",
         "aiohttp>=3.9",
@@ -44,7 +49,9 @@ setup(
         "matplotlib>=3.7",
     ],
     extras_require={
-        "test": ["pytest>=7", "ruff>=0.5"],
+        "test": ["pytest>=7", "pytest-xdist==3.8.0", "ruff>=0.5"],
+        # ray: --ray of veragmil-collect, veragmil-evaluate and veragmil-study (veragmil_suite.distributed)
+        "ray": [f"ray=={RAY_VERSION}"],
         # the Unitree G1 (robots="G1FixedLowerBody" or "G1ArmsOnly"); robosuite imports it when it is installed
         "humanoid": ["robosuite-models==1.0.0"],
     },

@@ -1,7 +1,8 @@
-"""Benchmark of the VR teleoperation path: pose-to-action latency, messages/s handled, frames/s streamed.
+"""Benchmark of the VR teleoperation path: pose-to-action latency, messages/s handled, frames/s streamed,
+hand-to-frame latency and where it goes.
 
-    python scripts/bench_vr.py              # about a minute and a half
-    python scripts/bench_vr.py --seconds 4  # shorter runs, noisier figures
+    python scripts/bench_vr.py              # about five minutes
+    python scripts/bench_vr.py --seconds 4 --trials 40  # shorter runs, noisier figures
 
 1. Rendering and JPEG encoding of the streamed camera (ScoopGranular's overhead camera, 320x240 RGB + depth):
    MuJoCo's default quality against the stream's settings (no multisampling, shadows or reflections, coarse
@@ -12,15 +13,30 @@
    action is computed, and the time from a hand step leaving the client to the first action that moves for it.
 4. Frames/s streamed while the environment runs in real time (a client at 90 Hz connected, the loop paced to the
    control rate): frames received per second, control steps per second achieved, renderer times.
+5. Hand-to-frame latency: ScoopGranular (rice) at 20 Hz in real time; a client process (the page's part) holds the
+   grip and moves the hand 2 cm every 0.6-0.9 s, and times each move from its first pose message leaving the
+   client to the first camera frame it receives showing a control step whose action came from that message or a
+   later one (each frame's timing block says which, ``vr_protocol.pack_frame``). The timing block splits the time
+   into stages: pose sent -> control step begins (the socket, then the wait for the next step), the control step,
+   the state to the renderer process, render, depth colour map and JPEG, back to the stream, the server's event
+   loop, the socket to the client; and the client's JPEG decode after that. Both frame schedules, in turn for 4 s
+   each with the same client (a changing load affects both alike): frames rendered right after each control step
+   (the default) and on a 30 fps clock (``sync_to_steps=False``). A clocked frame may show a step half done: the
+   first such frame counts as showing the move (its action has begun), and a second line gives the first frame of
+   that step finished. A headset adds its own decode and display: up to one 90 Hz display frame (11 ms).
+
+    python scripts/bench_vr.py --sections 5 --trials 200   # hand-to-frame only, about 200 moves per schedule
 """
 
 from __future__ import annotations
 
 import argparse
 import asyncio
+import io
 import json
 import multiprocessing
 import os
+import random
 import runpy
 import time
 from pathlib import Path
@@ -36,6 +52,7 @@ import robosuite  # noqa: E402
 import veragmil_suite  # noqa: E402, F401  (registers ScoopGranular)
 from veragmil_suite.devices import VRDevice, VRServerOptions, VRStreamOptions  # noqa: E402
 from veragmil_suite.devices.vr_client import HAND, Client, controller, pose_message, ws_url  # noqa: E402
+from veragmil_suite.devices.vr_protocol import unpack_frame  # noqa: E402
 from veragmil_suite.devices.vr_render import Renderer, depth_colormap, encode_jpeg  # noqa: E402
 
 
@@ -230,20 +247,212 @@ def bench_stream(env_name: str, control_freq: int, seconds: float, depth: bool =
         env.close()
 
 
+# ------------------------------------------------------------------------------------------------ 5. hand to frame
+MOVE_M = 0.02  # the hand's step, along the operator's right
+MOVE_EVERY_S = (0.6, 0.9)  # drawn at random, so that moves fall at every phase of the control period
+SWITCH_S = 4.0  # each frame schedule in turn for this long
+# (name, from, to): the stages of a move's way, in the times a frame's timing block carries ("client_sent": the
+# move's first message left the client; "received": the frame reached the client)
+STAGES = (
+    ("pose sent -> control step begins", "client_sent", "action"),
+    ("control step", "action", "captured"),
+    ("state to the renderer", "captured", "render_start"),
+    ("render", "render_start", "rendered"),
+    ("depth map + JPEG encode", "rendered", "encoded"),
+    ("JPEG back to the stream", "encoded", "published"),
+    ("server event loop", "published", "sent"),
+    ("socket -> client", "sent", "received"),
+)
+
+
+def _hand_client(url: str, trials: int, seed: int, out) -> None:
+    """Child process, the page's part: sends the right hand at 90 Hz with the grip held, moves it MOVE_M back or
+    forth every MOVE_EVERY_S, and stamps each move's first message; stamps every frame on arrival and decodes it as
+    the page would. Puts (moves [(seq, t_sent)], frames [(t_received, timing, decode_ms)]) on out."""
+    import aiohttp
+    from PIL import Image
+
+    rng = random.Random(seed)
+
+    async def run():
+        moves, frames = [], []
+        async with aiohttp.ClientSession() as session:
+            async with session.ws_connect(ws_url(url), max_msg_size=0) as ws:
+                await ws.send_str(json.dumps({"v": 1, "type": "hello", "token": None, "client": "bench"}))
+
+                async def receive():
+                    async for msg in ws:
+                        t = time.monotonic()
+                        if msg.type == aiohttp.WSMsgType.BINARY:
+                            header, jpeg = unpack_frame(msg.data)
+                            t0 = time.perf_counter()
+                            Image.open(io.BytesIO(jpeg)).load()
+                            frames.append((t, header.get("timing"), 1000 * (time.perf_counter() - t0)))
+                        elif msg.type == aiohttp.WSMsgType.TEXT:
+                            data = json.loads(msg.data)
+                            if data["type"] == "ping":
+                                await ws.send_str(json.dumps({"v": 1, "type": "pong", "id": data["id"]}))
+
+                receiver = asyncio.create_task(receive())
+                start = time.monotonic()
+                next_move = start + 1.5  # engaged by then
+                dx, seq = 0.0, 0
+                while len(moves) < trials:
+                    delay = start + seq / 90.0 - time.monotonic()
+                    if delay > 0:
+                        await asyncio.sleep(delay)
+                    now = time.monotonic()
+                    moved = now >= next_move
+                    if moved:
+                        dx = MOVE_M - dx
+                        next_move = now + rng.uniform(*MOVE_EVERY_S)
+                    hand = controller(p=(HAND[0] + dx, HAND[1], HAND[2]), squeeze=0.0 if now - start < 0.3 else 1.0)
+                    msg = pose_message(seq, 1000.0 * (now - start), right=hand)
+                    sent = time.monotonic()
+                    await ws.send_str(msg)
+                    if moved:
+                        moves.append((seq, sent))
+                    seq += 1
+                await asyncio.sleep(1.0)  # the last move's frames
+                receiver.cancel()
+        out.put((moves, frames))
+
+    asyncio.run(run())
+
+
+def hand_to_frame_trials(moves: list, frames: list) -> list[dict]:
+    """Per move, the times of its way (keys of STAGES, "decode_ms", and "finished": when the client received the
+    first frame of that control step once finished, or of a later step): the first frame received whose control
+    step's action came from the move's first message or a later one. Moves no frame showed are left out."""
+    rows = []
+    i = 0
+    for seq, sent in moves:
+        while i < len(frames) and (frames[i][1] is None or frames[i][1]["pose_seq"] < seq):
+            i += 1
+        if i == len(frames):
+            break
+        received, timing, decode_ms = frames[i]
+        later = (t for t, f, _ in frames[i:] if f is not None and (f["step"] > timing["step"] or not f["mid_step"]))
+        finished = next(later, float("nan"))
+        rows.append(dict(timing, client_sent=sent, received=received, decode_ms=decode_ms, finished=finished))
+    return rows
+
+
+def _summary(values) -> str:
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return "      (no data)"
+    return f"{np.median(v):6.1f} {np.percentile(v, 90):6.1f} {v.max():6.1f}"
+
+
+def bench_hand_to_frame(trials: int, env_name: str = "ScoopGranular") -> None:
+    """Both frame schedules in turn, SWITCH_S each, with one client throughout: a machine whose load changes
+    affects both alike. A move counts for the schedule in force from just before it to its frame."""
+    env = make(env_name)
+    camera = "overhead" if env_name == "ScoopGranular" else "agentview"
+    device = VRDevice(env, server=VRServerOptions(port=0), camera_name=camera, verbose=False)
+    schedules = {True: "after each control step", False: "on a 30 fps clock"}
+    stats = {sync: dict(steps=0, busy=0.0, sim=0.0, wall=0.0) for sync in schedules}
+    switches = []  # (time, sync)
+    ctx = multiprocessing.get_context("spawn")
+    out = ctx.Queue()
+    moves = int(2.5 * trials) + 4  # about 1 in 5 moves straddles a switch and counts for neither schedule
+    proc = ctx.Process(target=_hand_client, args=(device.url, moves, 0, out))
+    period = env.control_timestep
+    try:
+        proc.start()
+        device.start_control()
+        start = time.monotonic()
+        k, got, sync = 0, None, None
+        while got is None and time.monotonic() - start < 120 + 2 * moves:
+            t0 = time.monotonic()
+            if not switches or t0 - switches[-1][0] >= SWITCH_S:
+                sync = not switches or not sync
+                device.stream.sync_to_steps = sync
+                switches.append((t0, sync))
+            sim0 = env.sim.data.time
+            env.step(env_action(env, device, device.input2action()))
+            t1 = time.monotonic()
+            k += 1
+            delay = start + k * period - t1
+            if delay > 0:
+                time.sleep(delay)
+            st = stats[sync]
+            st["steps"] += 1
+            st["busy"] += t1 - t0
+            st["sim"] += env.sim.data.time - sim0
+            st["wall"] += time.monotonic() - t0
+            if not out.empty():
+                got = out.get()
+        proc.join(10)
+        if got is None:
+            raise RuntimeError("the hand-to-frame client did not finish")
+    finally:
+        if proc.is_alive():
+            proc.kill()
+        device.close()
+        env.close()
+    moves, frames = got
+    times = np.array([t for t, _ in switches])
+
+    def schedule(t0: float, t1: float):
+        """The schedule in force from t0 to t1, None when it changed in between (or just before: the stream sees
+        a change at its next decision)."""
+        i, j = np.searchsorted(times, [t0 - 0.05, t1], side="right") - 1
+        return switches[i][1] if i == j and i >= 0 else None
+
+    task = "ScoopGranular (rice)" if env_name == "ScoopGranular" else env_name
+    print(f"5. hand-to-frame: {task}, 20 Hz control in real time, 320x240 RGB+depth; a client process moves the")
+    print(f"   hand 2 cm, the frame schedule changes every {SWITCH_S:.0f} s; ms, median / p90 / max over the moves")
+    rows = hand_to_frame_trials(moves, frames)
+    for sync, name in schedules.items():
+        mine = [r for r in rows if schedule(r["client_sent"], np.nan_to_num(r["finished"], nan=np.inf)) is sync]
+        seen = [t for t, _, _ in frames if schedule(t - 0.2, t) is sync]  # frames of the schedule, once settled
+        ends = [*times[1:], frames[-1][0] if frames else times[-1]]
+        spans = sum(max(end - t - 0.25, 0.0) for (t, s_), end in zip(switches, ends) if s_ is sync)
+        mid = np.mean([r["mid_step"] for r in mine]) if mine else 0.0
+        st = stats[sync]
+        print(f"   frames {name}: {len(mine)} moves, {len(seen) / max(spans, 1e-9):4.1f} frames/s received, "
+              f"real-time factor {st['sim'] / max(st['wall'], 1e-9):4.2f}, control step "
+              f"{1000 * st['busy'] / max(st['steps'], 1):5.1f} ms, {100 * mid:3.0f}% of frames show a step "
+              "half done")  # fmt: skip
+        total = [1000 * (r["received"] - r["client_sent"]) for r in mine]
+        print(f"      {'hand -> frame received':36s} {_summary(total)}")
+        if mid > 0:
+            finished = [1000 * (r["finished"] - r["client_sent"]) for r in mine]
+            print(f"      {'  (its step finished in a frame)':36s} {_summary(finished)}")
+        for label, a, b in STAGES:
+            print(f"        {label:34s} {_summary([1000 * (r[b] - r[a]) for r in mine])}")
+        print(f"      {'client JPEG decode':36s} {_summary([r['decode_ms'] for r in mine])}")
+        decoded = [1000 * (r["received"] - r["client_sent"]) + r["decode_ms"] for r in mine]
+        print(f"      {'hand -> frame decoded':36s} {_summary(decoded)}")
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--seconds", type=float, default=8.0, help="length of each real-time run")
     p.add_argument("--messages", type=int, default=20000, help="messages in the throughput run")
+    p.add_argument("--trials", type=int, default=100, help="hand moves per frame schedule in the hand-to-frame run")
+    p.add_argument("--sections", default="1,2,3,4,5", help="which sections to run, e.g. 5 or 1,3")
+    p.add_argument("--env", default="ScoopGranular", help="hand-to-frame: the task (Lift: a cheaper simulation)")
     args = p.parse_args()
+    sections = {int(x) for x in args.sections.split(",")}
     print(f"{os.cpu_count()} CPUs, MUJOCO_GL={os.environ['MUJOCO_GL']}, load average {os.getloadavg()[0]:.2f}")
-    bench_render()
-    bench_messages(args.messages)
-    bench_latency(args.seconds)
-    print("4. frames/s streamed while the environment keeps real time (client at 90 Hz connected)")
-    bench_stream("Lift", 20, args.seconds)
-    bench_stream("ScoopGranular", 20, args.seconds)
-    bench_stream("ScoopGranular", 20, args.seconds, depth=False)
-    bench_stream("ScoopGranular", 60, args.seconds)
+    if 1 in sections:
+        bench_render()
+    if 2 in sections:
+        bench_messages(args.messages)
+    if 3 in sections:
+        bench_latency(args.seconds)
+    if 4 in sections:
+        print("4. frames/s streamed while the environment keeps real time (client at 90 Hz connected)")
+        bench_stream("Lift", 20, args.seconds)
+        bench_stream("ScoopGranular", 20, args.seconds)
+        bench_stream("ScoopGranular", 20, args.seconds, depth=False)
+        bench_stream("ScoopGranular", 60, args.seconds)
+    if 5 in sections:
+        bench_hand_to_frame(args.trials, args.env)
     print(f"load average at the end {os.getloadavg()[0]:.2f} (other processes share the CPUs: figures are theirs too)")
 
 

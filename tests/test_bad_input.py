@@ -51,6 +51,8 @@ CASES = [
     ("veragmil-evaluate", ["--agent", "{missing}", "--output-dir", "{tmp}/e"], "unrecognized agent"),
     ("veragmil-study", ["--output-dir", "{tmp}/s", "--episodes", "0"], "argument --episodes: must be a positive"),
     ("veragmil-study", ["--output-dir", "{tmp}/s", "--demos-per-food", "0"], "argument --demos-per-food: must be"),
+    ("veragmil-study", ["--output-dir", "{tmp}/s", "--algo-epochs", "rnn=4"], "ALGO=EPOCHS with ALGO one of ['bc'"),
+    ("veragmil-study", ["--output-dir", "{tmp}/s", "--algo-epochs", "bcq=0"], "EPOCHS must be a positive integer"),
     ("veragmil-quickstart", ["--episodes", "0"], "argument --episodes: must be a positive"),
     ("veragmil-study", ["--output-dir", "{tmp}/s", "--agent", "old=nowhere.pth"], "checkpoint 'nowhere.pth' not found"),
     ("veragmil-bench", ["--foods", "caviar"], "caviar"),

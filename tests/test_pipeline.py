@@ -71,6 +71,23 @@ def test_bad_settings_name_the_accepted_values(tmp_path):
     assert not (tmp_path / "q").exists() and not (tmp_path / "s").exists()
 
 
+def test_an_algorithm_with_its_own_budget_is_evaluated_at_its_end_and_at_the_sweeps_steps_it_reaches(tmp_path):
+    grid = dict(output_dir=str(tmp_path), algos=["bc", "bc_rnn", "bcq"], epochs=100, steps_per_epoch=500)
+    settings = PipelineSettings(**grid, algo_epochs={"bc_rnn": 40})
+    assert [settings.total_steps_of(a) for a in ("bc", "bc_rnn", "bcq")] == [50000, 20000, 50000]
+    assert settings.steps_of("bc") == [50000] and settings.steps_of("bc_rnn") == [20000]
+    assert settings.own_agents() == [
+        "expert operator", "expert BC 50k steps", "expert BC-RNN 20k steps", "expert BCQ 50k steps"
+    ]  # fmt: skip
+    curve = PipelineSettings(**grid, algo_epochs={"bc_rnn": 40}, eval_steps=[10000, 50000])
+    assert curve.steps_of("bc") == [10000, 50000] and curve.steps_of("bc_rnn") == [10000, 20000]
+    assert PipelineSettings(**grid).own_agents() == ["expert operator", "expert BC", "expert BC-RNN", "expert BCQ"]
+    with pytest.raises(ValueError, match=r"algo_epochs names unknown algorithm\(s\) \['gail'\]; accepted"):
+        PipelineSettings(**grid, algo_epochs={"gail": 3})
+    with pytest.raises(ValueError, match=r"eval_steps \[60000\] .* up to .* \(50000\)"):
+        PipelineSettings(**grid, algo_epochs={"bc_rnn": 40}, eval_steps=[60000])
+
+
 def test_quickstart_end_to_end_records_trains_evaluates_and_prints_the_tables(tmp_path):
     """The README's main job, shrunk: one cheap food, one demo, a few gradient steps, one episode per agent."""
     out = tmp_path / "qs"

@@ -199,3 +199,60 @@ def test_training_split_smaller_than_a_batch_fails_clearly(low_dim_dataset, tmp_
     result = _run("veragmil-train", "--config", config)
     assert result.returncode != 0
     assert "fewer than one batch" in result.stdout
+
+
+def test_normalize_obs_takes_any_leading_dimensions_and_leaves_extra_keys():
+    robomimic_compat.install()
+    import robomimic.utils.obs_utils as ObsUtils
+
+    stats = {"a": {"mean": np.array([[1.0, 2.0]]), "std": np.array([[2.0, 4.0]])}}
+    expected = np.array([0.5, 0.5])
+    for shape in [(), (5,), (5, 10)]:  # a rollout step, a batch, a batch of sequences
+        obs = {"a": np.broadcast_to([2.0, 4.0], (*shape, 2)), "extra": np.zeros(3)}
+        out = ObsUtils.normalize_obs(obs, obs_normalization_stats=stats)
+        np.testing.assert_allclose(out["a"], np.broadcast_to(expected, (*shape, 2)))
+        assert out["extra"] is obs["extra"] and obs["a"][..., 0].max() == 2.0  # the caller's dict is unchanged
+    with pytest.raises(ValueError, match=r"observation 'a' of shape \(5, 3\) does not end in .* \(2,\)"):
+        ObsUtils.normalize_obs({"a": np.zeros((5, 3))}, obs_normalization_stats=stats)
+
+
+def test_bc_rnn_trains_on_normalized_observations_once_and_its_policy_normalizes_in_rollouts(low_dim_dataset, tmp_path):
+    """robomimic 0.3.0 failed on the first batch with train.hdf5_normalize_obs; the samples are normalized by the
+    dataset alone, and the checkpoint carries the statistics its rollouts use."""
+    import torch
+
+    robomimic_compat.install()
+    import robomimic.utils.file_utils as FileUtils
+    from robomimic.algo.algo import Algo
+    from robomimic.utils.dataset import SequenceDataset
+
+    # robomimic 0.3.0 refuses validation with normalization
+    config = _tiny_config(
+        "bc_rnn", low_dim_dataset, tmp_path, "normalized", hdf5_normalize_obs=True, hdf5_validation_filter_key=None
+    )
+    spec = json.loads(config.read_text())
+    spec["experiment"].update(validate=False, rollout=dict(spec["experiment"]["rollout"], enabled=False))
+    config.write_text(json.dumps(spec))
+    result = _run("veragmil-train", "--config", config)
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    (checkpoint,) = (tmp_path / "normalized").glob("*/models/*.pth")
+    policy, ckpt = FileUtils.policy_from_checkpoint(ckpt_path=str(checkpoint), device=torch.device("cpu"))
+    stats = ckpt["obs_normalization_stats"]
+    keys = spec["observation"]["modalities"]["obs"]["low_dim"]
+    assert sorted(stats) == sorted(keys) and policy.obs_normalization_stats is not None
+
+    # a sequence sample is normalized once, by the dataset: postprocessing the batch leaves it so
+    seq = spec["train"]["seq_length"]
+    dataset = SequenceDataset(
+        hdf5_path=str(low_dim_dataset), obs_keys=keys, dataset_keys=("actions",), seq_length=seq,
+        hdf5_normalize_obs=True, filter_by_attribute="train",
+    )  # fmt: skip
+    sample = dataset[0]
+    with h5py.File(low_dim_dataset) as f:
+        demo = sorted(n.decode() for n in f["mask/train"][:])[0]
+        raw = f[f"data/{demo}/obs/{keys[0]}"][:seq]
+    mean, std = dataset.obs_normalization_stats[keys[0]]["mean"], dataset.obs_normalization_stats[keys[0]]["std"]
+    np.testing.assert_allclose(sample["obs"][keys[0]], (raw - mean) / std, rtol=1e-5, atol=1e-6)
+    batch = {"obs": {k: torch.as_tensor(v)[None] for k, v in sample["obs"].items()}}
+    kept = Algo.postprocess_batch_for_training(policy.policy, batch, obs_normalization_stats=stats)
+    np.testing.assert_allclose(kept["obs"][keys[0]][0].numpy(), sample["obs"][keys[0]], rtol=1e-6)

@@ -36,7 +36,8 @@ def _missing() -> str | None:
     return None
 
 
-pytestmark = pytest.mark.skipif(_missing() is not None, reason=_missing() or "")
+# real time: make test runs these alone, after the rest (see conftest.py)
+pytestmark = [pytest.mark.realtime, pytest.mark.skipif(_missing() is not None, reason=_missing() or "")]
 
 # hand moves in the XR frame (x right, y up, z toward the operator) and where they must take the end-effector:
 # agentview looks back at the robot (along -x), so the image's right is +y and up is +z
@@ -80,6 +81,11 @@ def test_emulated_quest_in_chromium_drives_the_arm_and_sees_the_camera():
     assert result["framesBeforeXR"] >= 3  # the camera stream reached the page before VR
     assert stats["framesDrawn"] > 10 and stats["framesDecoded"] > 30  # and was drawn on the panel in VR
     assert stats["posesSent"] > 100 and stats["lastFrame"]["panels"] == 2
+    # the page reads each frame's timing block and times its own part (decode, then the next XR frame)
+    assert stats["lastFrame"]["timing"]["step"] > 0 and stats["lastFrame"]["timing"]["poseSeq"] > 0
+    latency = stats["latency"]
+    assert latency["decoded"] > 30 and latency["drawn"] > 10
+    assert 0 < latency["receivedToDecodedMs"] < 1000 and 0 <= latency["decodedToDrawnMs"] < 1000
 
     # one engaged stretch per move; the end-effector displacement of each, once it settled (before the next)
     engaged = np.array([e["engaged"] for e in log])

@@ -10,12 +10,15 @@ import time
 import numpy as np
 import pytest
 from helpers.recording import make_env, tiny_env_kwargs
-from helpers.vr import HAND, Client, controller, eef_pose, lockstep, make_lift_env, run_loop
+from helpers.vr import HAND, Client, controller, eef_pose, env_action, lockstep, make_lift_env, run_loop
 from PIL import Image
 
 from veragmil_suite.devices import VRDevice, VRServerOptions
 from veragmil_suite.devices import vr_frames as F
 from veragmil_suite.devices.vr_server import CLOSE_FINISHED
+
+# real time (staleness, heartbeats, timeouts): make test runs these alone, after the rest (see conftest.py)
+pytestmark = pytest.mark.realtime
 
 ANY_PORT = VRServerOptions(port=0)
 
@@ -303,6 +306,51 @@ def test_camera_frames_and_status_reach_the_page(session):
     run_loop(env, device, until=lambda: done.done() and len(client.frames) >= 3, max_seconds=10)
     assert client.frames[-1][1]["panels"] == 1 and client.frames[-1][1]["width"] == 320
     device.stream.depth = True
+
+
+def test_each_control_step_gets_a_frame_that_names_the_pose_it_followed(session):
+    """Frames are rendered right after a control step finishes (never halfway), and their timing block names the
+    step and the pose message whose action drove it, with the stages in order."""
+    env, device, client = session
+    used = {}  # control step -> seq of the newest pose message before it
+    handled = device.messages_handled
+    for _ in range(12):
+        client.send_pose(right=controller())
+        handled += 1
+        deadline = time.monotonic() + 5.0
+        while device.messages_handled < handled and time.monotonic() < deadline:
+            time.sleep(0.001)
+        action = device.input2action()
+        used[env.timestep + 1] = client.seq - 1
+        env.step(env_action(env, device, action))
+        deadline = time.monotonic() + 5.0  # a teleoperation loop would sleep here; this one waits for the frame
+        while time.monotonic() < deadline and not any(
+            h.get("timing", {}).get("step") == env.timestep for _, h in client.frames
+        ):
+            time.sleep(0.001)
+    frames = {h["frame_id"]: h["timing"] for _, h in client.frames if "timing" in h}  # a still frame is sent again
+    timed = [t for t in frames.values() if t["step"] in used]
+    assert [t["step"] for t in timed] == sorted(used)  # one frame per step, in order
+    for t in timed:
+        assert not t["mid_step"] and t["pose_seq"] == used[t["step"]]
+        stages = [t[k] for k in ("action", "captured", "render_start", "rendered", "encoded", "published", "sent")]
+        assert stages == sorted(stages) and t["pose_received"] <= t["action"]
+
+
+def test_a_scene_moved_without_a_step_is_rendered_again(session):
+    """A reset places the robot and objects without a control step or a tick of the simulated clock; the page must
+    not keep showing the scene from before."""
+    env, device, client = session
+    run_loop(env, device, until=lambda: len(client.frames) >= 2, max_seconds=10)
+    time.sleep(0.2)
+    last = client.frames[-1][1]["frame_id"]
+    env.sim.data.qpos[env.robots[0]._ref_joint_pos_indexes[0]] += 0.3
+    env.sim.forward()
+    deadline = time.monotonic() + 5.0
+    while time.monotonic() < deadline and client.frames[-1][1]["frame_id"] == last:
+        time.sleep(0.01)
+    assert client.frames[-1][1]["frame_id"] > last
+    assert client.frames[-1][1]["timing"]["step"] == env.timestep  # no step was taken
 
 
 def test_streamed_jpeg_shows_the_scene_and_its_depth(session):

@@ -1,6 +1,12 @@
-"""Message schema v1: what is accepted, what is dropped under which reason, the frame header; button events."""
+"""Message schema v1: what is accepted, what is dropped under which reason, the frame header and its timing block
+(in Python and in the page's parser); button events."""
 
+import base64
 import json
+import math
+import shutil
+import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -9,6 +15,7 @@ from veragmil_suite.devices.vr_controls import DEFAULT_BINDINGS, Binding, Button
 from veragmil_suite.devices.vr_protocol import (
     MAX_MESSAGE_BYTES,
     PANELS_RGB_DEPTH,
+    TIMES,
     ControllerState,
     HelloMessage,
     PongMessage,
@@ -16,6 +23,7 @@ from veragmil_suite.devices.vr_protocol import (
     ProtocolError,
     pack_frame,
     parse_client_message,
+    stamp_sent,
     unpack_frame,
 )
 
@@ -125,6 +133,63 @@ def test_frame_header_round_trip():
     assert len(data) - len(jpeg) == 20  # the page reads a 20-byte header
     with pytest.raises(ValueError):
         unpack_frame(b"XX" + data[2:])
+    assert stamp_sent(data, 1.0) == data  # no timing block to stamp
+
+
+TIMING = dict(step=17, mid_step=False, pose_seq=1042, **{name: 100.0 + i / 1000 for i, name in enumerate(TIMES)})
+
+
+def test_timed_frame_round_trip_and_sent_stamp():
+    data = pack_frame(b"\xff\xd8jpeg", 42, 3.25, 640, 240, PANELS_RGB_DEPTH, dict(TIMING, sent=None))
+    header, jpeg = unpack_frame(data)
+    assert jpeg == b"\xff\xd8jpeg" and header["version"] == 2 and header["frame_id"] == 42
+    assert math.isnan(header["timing"].pop("sent"))  # stamped by the server as it sends
+    assert header["timing"] == {k: v for k, v in TIMING.items() if k != "sent"}
+    header, jpeg = unpack_frame(stamp_sent(data, 123.5))
+    assert header["timing"]["sent"] == 123.5 and jpeg == b"\xff\xd8jpeg"
+    # unknown values: no step clock, no pose behind the step, a stage not timed
+    header, _ = unpack_frame(pack_frame(b"j", 1, 0.0, 320, 240, 1, dict(captured=5.0)))
+    timing = header["timing"]
+    assert timing["step"] is None and timing["pose_seq"] == -1 and timing["captured"] == 5.0
+    assert math.isnan(timing["action"]) and timing["mid_step"] is False
+
+
+def test_timing_block_is_skipped_by_its_length():
+    data = pack_frame(b"\xff\xd8jpeg", 42, 3.25, 640, 240, PANELS_RGB_DEPTH, TIMING)
+    n = int.from_bytes(data[20:22], "little")
+    longer = data[:20] + (n + 8).to_bytes(2, "little") + data[22 : 22 + n] + b"newfield" + data[22 + n :]
+    header, jpeg = unpack_frame(longer)  # a field appended by a later version
+    assert jpeg == b"\xff\xd8jpeg" and header["timing"]["pose_seq"] == 1042
+    for broken in (data[:21], data[:30], data[:20] + (4).to_bytes(2, "little") + data[22:]):
+        with pytest.raises(ValueError):
+            unpack_frame(broken)
+
+
+@pytest.mark.skipif(shutil.which("node") is None, reason="node is not installed")
+def test_the_page_parses_both_frame_versions():
+    """web/link.js's parseFrame (run by node) reads what pack_frame writes, timing block or not."""
+    web = Path(__file__).resolve().parents[1] / "veragmil_suite" / "devices" / "web"
+    frames = [
+        pack_frame(b"\xff\xd8jpeg", 42, 3.25, 640, 240, PANELS_RGB_DEPTH),
+        stamp_sent(pack_frame(b"\xff\xd8jpeg", 43, 3.5, 640, 240, PANELS_RGB_DEPTH, TIMING), 200.0),
+    ]
+    script = """
+import { parseFrame } from "./link.js";
+const out = JSON.parse(process.argv[1]).map((b64) => {
+  const bytes = Buffer.from(b64, "base64");
+  const f = parseFrame(bytes.buffer.slice(bytes.byteOffset, bytes.byteOffset + bytes.length));
+  return { ...f, jpeg: Buffer.from(f.jpeg).toString("latin1") };
+});
+console.log(JSON.stringify(out));
+"""
+    arg = json.dumps([base64.b64encode(f).decode() for f in frames])
+    run = subprocess.run(["node", "--input-type=module", "-e", script, arg], cwd=web, capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    old, timed = json.loads(run.stdout)
+    assert old == dict(version=1, panels=2, frameId=42, simTime=3.25, width=640, height=240, jpeg="\xff\xd8jpeg")
+    assert timed["frameId"] == 43 and timed["jpeg"] == "\xff\xd8jpeg"
+    camel = {"".join(w.title() if i else w for i, w in enumerate(k.split("_"))): v for k, v in TIMING.items()}
+    assert timed["timing"] == dict(camel, sent=200.0)
 
 
 # ---------------------------------------------------------------- buttons

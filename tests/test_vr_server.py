@@ -18,6 +18,9 @@ from veragmil_suite.devices import vr_tls
 from veragmil_suite.devices.vr_protocol import PoseMessage, pack_frame
 from veragmil_suite.devices.vr_server import MAX_WS_FRAME_BYTES, VRServer, VRServerOptions, is_loopback
 
+# real time (staleness, heartbeats, timeouts): make test runs these alone, after the rest (see conftest.py)
+pytestmark = pytest.mark.realtime
+
 
 class Recorder:
     def __init__(self, fail_on=None):
@@ -199,6 +202,16 @@ def test_only_the_newest_frame_is_sent(server):
     c.close()
 
 
+def test_a_timed_frame_is_stamped_as_it_is_sent(server):
+    c = Client(server.url).connect()
+    published = time.monotonic()
+    server.publish_frame(pack_frame(b"\xff\xd8jpeg", 1, 0.05, 320, 240, 1, dict(step=1, published=published)))
+    assert wait_for(lambda: c.frames)
+    received, header = c.frames[0]
+    assert published <= header["timing"]["sent"] <= received and c.last_jpeg == b"\xff\xd8jpeg"
+    c.close()
+
+
 def test_status_is_throttled_to_the_newest(server):
     c = Client(server.url).connect()
     for i in range(200):
@@ -272,6 +285,7 @@ SERVER_CHILD = """
 import json, resource, sys
 resource.setrlimit(resource.RLIMIT_NOFILE, (1024, 1024))
 from veragmil_suite.devices.vr_server import VRServer, VRServerOptions
+
 server = VRServer(VRServerOptions(port=0, request_timeout=1.0, heartbeat_timeout=1.0)).start()
 print(server.port, flush=True)
 sys.stdin.readline()

@@ -1,7 +1,8 @@
 """veragmil_suite: scooping and carrying granular food with a spoon, as a robosuite task plugin.
 
 Importing the package registers the ScoopGranular environment (robosuite registers every environment class
-when it is defined) and the SpoonGripper (gripper_types="SpoonGripper").
+when it is defined), the SpoonGripper (gripper_types="SpoonGripper") and the Gymnasium id
+"veragmil/ScoopGranular-v0" (veragmil_suite.gym_env).
 """
 
 import os
@@ -17,14 +18,19 @@ if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
 
 from veragmil_suite.environments.scoop import ScoopGranular  # noqa: E402
 from veragmil_suite.foods import FOODS, TRAINING_FOODS, UNSEEN_FOODS, FoodSpec, get_food, register_food  # noqa: E402
+from veragmil_suite.gym_env import GYM_ENV_ID, ScoopGranularGymEnv, register_gym_env  # noqa: E402
 from veragmil_suite.models.spoon_gripper import SpoonGripper  # noqa: E402
+
+register_gym_env()
 
 __all__ = [
     "FOODS",
+    "GYM_ENV_ID",
     "TRAINING_FOODS",
     "UNSEEN_FOODS",
     "FoodSpec",
     "ScoopGranular",
+    "ScoopGranularGymEnv",
     "SpoonGripper",
     "get_food",
     "register_food",

@@ -6,6 +6,8 @@ An episode ends once success has held ``success_hold_s`` (``round(success_hold_s
 successful steps, at least one), at a physics error, at the horizon (the env's done, or ``horizon`` steps taken),
 or when the agent returns no action (a scripted agent gave up, a human operator stopped). The end reasons are
 "success", "physics", "horizon" and the one the caller names for an agent that stops ("gave up" by default).
+The success rule is :class:`SuccessHold`, which the Gymnasium environment (veragmil_suite.gym_env) ends its
+episodes by as well.
 """
 
 from __future__ import annotations
@@ -20,6 +22,32 @@ from veragmil_suite.environments.scoop import StageTracker
 
 # how long success must hold to end an episode (veragmil-collect's default --success-hold, veragmil-evaluate's rule)
 SUCCESS_HOLD_S = 1.0
+
+
+class SuccessHold:
+    """
+    Whether success has held ``success_hold_s``: ``round(success_hold_s * control_freq)`` consecutive successful
+    steps, at least one. The one rule by which every episode of the suite ends in success.
+
+    Args:
+        control_freq: control steps per second
+        success_hold_s: seconds success must hold; None or <= 0: success never ends an episode (``update`` is
+            always False)
+    """
+
+    def __init__(self, control_freq: float, success_hold_s: float | None = SUCCESS_HOLD_S):
+        self.steps = None  # consecutive successful steps that end the episode
+        if success_hold_s is not None and success_hold_s > 0:
+            self.steps = max(1, int(round(success_hold_s * control_freq)))
+        self.streak = 0
+
+    def reset(self) -> None:
+        self.streak = 0
+
+    def update(self, info: dict) -> bool:
+        """Counts one step's ``info["success"]``; returns whether success has now held long enough."""
+        self.streak = self.streak + 1 if info.get("success") else 0
+        return self.steps is not None and self.streak >= self.steps
 
 
 @dataclass(frozen=True)
@@ -61,10 +89,8 @@ def run_until_done(
         realtime: each step takes at least 1 / ``control_freq`` seconds, so a human sees the robot at its speed
         stopped: the end reason when ``act`` returns None
     """
-    hold = None  # consecutive successful steps that end the episode
-    if success_hold_s is not None and success_hold_s > 0:
-        hold = max(1, int(round(success_hold_s * control_freq)))
-    streak, steps, peak, info, reason = 0, 0, 0, {}, "horizon"
+    hold = SuccessHold(control_freq, success_hold_s)
+    steps, peak, info, reason = 0, 0, {}, "horizon"
     stages = StageTracker()
     while steps < horizon:
         start = time.perf_counter()
@@ -78,11 +104,11 @@ def run_until_done(
             on_step()
         peak = max(peak, int(info.get("grains_in_spoon", 0)))
         stages.update(info)
-        streak = streak + 1 if info.get("success") else 0
+        held = hold.update(info)
         if info.get("physics_error"):
             reason = "physics"
             break
-        if hold is not None and streak >= hold:
+        if held:
             reason = "success"
             break
         if done:

@@ -4,7 +4,9 @@ Scoring agents on ScoopGranular and writing the paper's Tables II and III.
 An agent is a robomimic checkpoint (``*.pth``), the scripted expert (``expert`` or ``expert:<profile>``) or a
 recorded dataset (``dataset:<file.hdf5>``, e.g. human demonstrations: its demos' stored metrics, no rollouts).
 Episode ``i`` of a food runs with env seed ``seed + i`` for every agent, so all agents meet the same bowls and piles.
-Episodes run in parallel worker processes, one task per (agent, food, episode).
+Episodes run in parallel worker processes, or as Ray tasks (veragmil_suite.distributed), one piece per (agent, food,
+episode); Ray workers are handed the piles settled on the driver, so an episode's outcome does not depend on where
+it ran.
 
 An episode runs in the loop veragmil-collect records demonstrations with (veragmil_suite.episode): it ends once
 success has held for ``SUCCESS_HOLD_S``, at the horizon, when the agent gives up (the expert after its longest hold)
@@ -25,17 +27,16 @@ import csv
 import io
 import json
 import math
-import multiprocessing
 import os
 import time
 import traceback
 from collections.abc import Callable
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
 
+from veragmil_suite.distributed import Resources, WorkerLost, ray_session, run_pieces
 from veragmil_suite.episode import SUCCESS_HOLD_S, run_until_done
 from veragmil_suite.foods import TRAINING_FOODS, UNSEEN_FOODS
 from veragmil_suite.rendering import use_headless_rendering
@@ -201,17 +202,33 @@ def _init_worker() -> None:
     os.environ["OMP_NUM_THREADS"] = "1"
 
 
+EXPERT_KWARGS = dict(robots=EXPERT_ROBOT, has_renderer=False, use_camera_obs=False)
+
+
+def _env_kwargs(task: EpisodeTask, base: dict) -> dict:
+    """robosuite.make keyword arguments of a task's environment: ``base`` (the expert's robot, or the env of a
+    checkpoint's training data less its food), the task's env_kwargs, then its food, seed and horizon."""
+    kwargs = dict(base)
+    kwargs.update(task.env_kwargs)
+    kwargs.update(food=task.food, seed=task.seed)
+    if task.horizon is not None:
+        kwargs["horizon"] = task.horizon
+    return kwargs
+
+
+def _checkpoint_base(env_meta: dict) -> dict:
+    """A checkpoint's training env kwargs less those that describe its food."""
+    return {k: v for k, v in env_meta["env_kwargs"].items() if k not in FOOD_KWARGS}
+
+
 def _expert_env(task: EpisodeTask):
     import robosuite
 
     import veragmil_suite  # noqa: F401
     from veragmil_suite.expert import ScriptedScooper
 
-    kwargs = dict(robots=EXPERT_ROBOT, has_renderer=False, use_camera_obs=False)
-    kwargs.update(task.env_kwargs)
-    kwargs.update(food=task.food, seed=task.seed, has_offscreen_renderer=bool(task.video_path))
-    if task.horizon is not None:
-        kwargs["horizon"] = task.horizon
+    kwargs = _env_kwargs(task, EXPERT_KWARGS)
+    kwargs["has_offscreen_renderer"] = bool(task.video_path)
     env = robosuite.make("ScoopGranular", **kwargs)
     expert = ScriptedScooper(env, task.spec.target, seed=task.seed)
     obs = env.reset()
@@ -243,12 +260,7 @@ def _checkpoint_env(task: EpisodeTask):
 
     policy, ckpt = _policy(task.spec.target)
     meta = copy.deepcopy(ckpt["env_metadata"])
-    kwargs = {k: v for k, v in meta["env_kwargs"].items() if k not in FOOD_KWARGS}
-    kwargs.update(task.env_kwargs)
-    kwargs.update(food=task.food, seed=task.seed)
-    if task.horizon is not None:
-        kwargs["horizon"] = task.horizon
-    meta["env_kwargs"] = kwargs
+    meta["env_kwargs"] = _env_kwargs(task, _checkpoint_base(meta))
     use_images = bool(ckpt["shape_metadata"]["use_images"])
     with contextlib.redirect_stdout(io.StringIO()):  # robomimic prints each env it creates
         env = EnvUtils.create_env_from_metadata(
@@ -307,13 +319,57 @@ def run_episode(task: EpisodeTask) -> EpisodeRecord:
     )
 
 
-def _run_task(task: EpisodeTask) -> EpisodeRecord:
-    """Worker entry: the record, or an EvaluationError carrying this process's traceback."""
+def _run_task(piles: dict | None, task: EpisodeTask) -> EpisodeRecord:
+    """Worker entry: the record, or an EvaluationError carrying this process's traceback. ``piles``: the driver's
+    settled piles (on Ray), which the episode's environment takes instead of settling its own."""
+    from veragmil_suite import settling
+
     try:
+        settling.use_shipped_piles(piles)
         return run_episode(task)
     except Exception as e:  # noqa: BLE001 - re-raised in the parent with the worker's traceback
         where = f"{task.agent} on {task.food}, episode {task.episode} (seed {task.seed})"
         raise EvaluationError(f"{where} failed in a worker:\n{traceback.format_exc()}") from e
+
+
+def driver_piles(tasks: list[EpisodeTask]) -> dict:
+    """
+    Every pile variant the tasks' environments can draw, settled on this machine (or read from its cache), by
+    cache key: Ray workers score their episodes on these, whatever their CPU (settling.use_shipped_piles).
+    """
+    import robosuite
+
+    import veragmil_suite  # noqa: F401
+
+    bases: dict[str, dict] = {}
+    built: set[str] = set()
+    piles: dict = {}
+    for task in tasks:
+        target = task.spec.target
+        if target not in bases:
+            bases[target] = EXPERT_KWARGS if task.spec.kind == "expert" else _checkpoint_base(_env_metadata(target))
+        kwargs = _env_kwargs(task, bases[target])
+        # the seed draws one variant; settled_piles settles them all
+        kwargs.update(seed=0, has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False)
+        key = json.dumps(kwargs, sort_keys=True, default=str)
+        if key in built:
+            continue
+        built.add(key)
+        env = robosuite.make("ScoopGranular", **kwargs)
+        piles.update(env.settled_piles())
+        env.close()
+    return piles
+
+
+def _env_metadata(path: str) -> dict:
+    """A checkpoint's env metadata, read without building its policy."""
+    from veragmil_suite import robomimic_compat
+
+    with contextlib.redirect_stdout(io.StringIO()):  # robomimic's "no private macro file" warning at import
+        robomimic_compat.install()
+        import robomimic.utils.file_utils as FileUtils
+
+        return FileUtils.load_dict_from_checkpoint(path)["env_metadata"]
 
 
 def dataset_episodes(name: str, path: str, foods: list[str]) -> list[EpisodeRecord]:
@@ -692,6 +748,7 @@ def evaluate(
     video_camera: str = DEFAULT_VIDEO_CAMERA,
     resume: bool = False,
     say: Callable[[str], None] | None = None,
+    ray: str | None = None,
 ) -> EvaluationResult:
     """
     Scores each agent (name -> SPEC, see parse_spec) for ``episodes`` episodes per food, env seeds ``seed + i``.
@@ -701,6 +758,10 @@ def evaluate(
     and journals each finished episode in ``output_dir``/episodes.jsonl as it ends: with ``resume``, episodes
     the journal holds (same agent SPEC, food, seed, horizon and env_kwargs; their video, if asked for, on disk)
     are taken from it instead of run again, whatever the agent is named now.
+
+    Episodes run in ``processes`` worker processes, or with ``ray`` (a cluster's address, or
+    distributed.THIS_MACHINE) as Ray tasks of one CPU each, on the piles settled here; either way the journal and
+    the outputs are written here as episodes end.
 
     Raises:
         ValueError: [unknown food, bad agent SPEC, non-positive sizes, videos without output_dir]
@@ -741,7 +802,8 @@ def evaluate(
         records += reused
     episodes_run = len(tasks)
     if tasks:
-        records += _run_parallel(tasks, int(processes), progress, journal)
+        with ray_session(ray) as address:
+            records += _run_parallel(tasks, int(processes), progress, journal, on_ray=address is not None)
     order = {name: i for i, name in enumerate(specs)}
     records.sort(key=lambda r: (order[r.agent], foods.index(r.food), r.episode))
     config = dict(
@@ -751,6 +813,7 @@ def evaluate(
         seed=int(seed),
         horizon=horizon,
         processes=int(processes),
+        ray=ray is not None,
         videos=int(videos),
         video_camera=video_camera,
         env_kwargs=dict(env_kwargs or {}),
@@ -804,33 +867,34 @@ class Journal:
 
 
 def _run_parallel(
-    tasks: list[EpisodeTask], processes: int, progress: bool, journal: Journal | None = None
+    tasks: list[EpisodeTask], processes: int, progress: bool, journal: Journal | None = None, on_ray: bool = False
 ) -> list[EpisodeRecord]:
-    """Runs the tasks in ``processes`` fresh worker processes, journaling each record; the first failure stops
-    the run and is raised."""
+    """Runs the tasks in ``processes`` fresh worker processes, or as Ray tasks on the piles settled here, journaling
+    each record as it arrives; the first failure stops the run and is raised."""
     from tqdm import tqdm
 
-    methods = multiprocessing.get_all_start_methods()
-    context = multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+    piles = driver_piles(tasks) if on_ray else None
     records = []
-    with tqdm(total=len(tasks), desc="episodes", unit="ep", disable=not progress) as bar:
-        with ProcessPoolExecutor(max_workers=processes, mp_context=context, initializer=_init_worker) as pool:
-            task_of = {pool.submit(_run_task, t): t for t in tasks}
-            pending = set(task_of)
-            while pending:
-                done, pending = wait(pending, return_when=FIRST_COMPLETED)
-                for future in done:
-                    error = future.exception()
-                    if error is not None:
-                        bar.write(f"evaluation failed, stopping the workers: {error}")
-                        for other in pending:
-                            other.cancel()
-                        pool.shutdown(wait=True, cancel_futures=True)  # at most the episodes under way
-                        if isinstance(error, EvaluationError):
-                            raise EvaluationError(str(error)) from None
-                        raise EvaluationError(f"a worker process failed: {error!r}") from error
-                    records.append(future.result())
-                    if journal is not None:
-                        journal.add(task_of[future], records[-1])
-                    bar.update(1)
+    pieces = run_pieces(
+        _run_task,
+        tasks,
+        context=piles,
+        processes=processes,
+        on_ray=on_ray,
+        setup=_init_worker,
+        resources=Resources(cpus=1),
+    )
+    with tqdm(total=len(tasks), desc="episodes", unit="ep", disable=not progress) as bar, contextlib.closing(pieces):
+        try:
+            for task, record in pieces:
+                records.append(record)
+                if journal is not None:
+                    journal.add(task, record)
+                bar.update(1)
+        except EvaluationError as error:
+            bar.write(f"evaluation failed, stopping the workers: {error}")
+            raise EvaluationError(str(error)) from None
+        except WorkerLost as error:
+            bar.write(f"evaluation failed, stopping the workers: {error}")
+            raise EvaluationError(f"a worker process failed: {error}") from error
     return records

@@ -15,10 +15,16 @@ or partial grid continues where it stopped and a larger one reuses the pieces of
 - Training: ``runs/<profile>_<algo>_<N>demos_<steps>steps``, complete once its last checkpoint exists and its
   config equals the one asked for (a different one is refused: pick another output directory).
 - Evaluation: every finished episode is journaled (veragmil_suite.evaluation), and only the missing ones run.
+
+With ``ray`` (veragmil-study --ray [ADDRESS]) the same pieces run as Ray tasks (veragmil_suite.distributed): each
+recording attempt and evaluation episode on one CPU, each training run on its torch threads' CPUs (and a GPU when
+the cluster has one), all training runs at once. The driver keeps the bookkeeping (files, journal, skips), so a
+study resumes the same way; the output directory must be one path that every node sees (a shared filesystem).
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -31,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from veragmil_suite.asset_paths import config_path
+from veragmil_suite.distributed import Resources, ray_session, run_pieces
 from veragmil_suite.foods import FOODS, TRAINING_FOODS, UNSEEN_FOODS, get_food
 from veragmil_suite.rendering import use_headless_rendering
 
@@ -40,6 +47,8 @@ ALGO_LABELS = {"bc": "BC", "bc_rnn": "BC-RNN", "bcq": "BCQ"}
 
 # Seeds of recorded episodes and of evaluation episodes never meet: evaluation bowls are not training bowls.
 EVAL_SEED_OFFSET = 100_000
+# torch threads of a training run unless $VERAGMIL_TORCH_THREADS says otherwise (robomimic's train() sets 2)
+ROBOMIMIC_TORCH_THREADS = 2
 # Seeds of the foods' recordings are this far apart (by the food's place in the catalog, seen foods first), so
 # every demo of a dataset has its own bowl and pile, whichever foods a run records.
 FOOD_SEED_STRIDE = 1000
@@ -56,6 +65,9 @@ class PipelineSettings:
     ``demos_per_food`` and ``eval_steps`` may list several values (learning curves): each demo count trains its
     own model on the first N demos of each food, and each model is evaluated at every step count of
     ``eval_steps`` (gradient steps, multiples of ``steps_per_epoch``; by default only at the end of training).
+    ``algo_epochs`` (algorithm -> epochs) gives an algorithm its own budget instead of ``epochs``: BC-RNN costs 7x
+    BC's time per gradient step. Each algorithm is evaluated at the ``eval_steps`` its training reaches, and one
+    with its own budget at its end too.
     ``agents`` (name -> agent SPEC of veragmil_suite.evaluation) are evaluated beside the run's own, on the same
     bowls: a pretrained checkpoint, another operator profile, a recorded dataset.
     """
@@ -69,6 +81,7 @@ class PipelineSettings:
     epochs: int = 20
     steps_per_epoch: int = 100
     eval_steps: list[int] | None = None
+    algo_epochs: dict[str, int] = field(default_factory=dict)
     episodes: int = 3
     processes: int = 2
     seed: int = 0
@@ -76,6 +89,7 @@ class PipelineSettings:
     n_grains: int | None = None
     score_demonstrators: bool = True
     agents: dict[str, str] = field(default_factory=dict)
+    ray: str | None = None  # None: local processes; else a Ray cluster's address (distributed.THIS_MACHINE: here)
 
     def __post_init__(self):
         for food in [*self.train_foods, *self.eval_foods]:
@@ -95,8 +109,14 @@ class PipelineSettings:
                 raise ValueError(f"{name} must be a positive integer, got {getattr(self, name)!r}")
         if not self.demos_per_food or self.demos_per_food[0] < 1:
             raise ValueError(f"demos_per_food must be positive integers, got {self.demos_per_food!r}")
-        total = self.epochs * self.steps_per_epoch
-        steps = sorted(set(int(k) for k in (self.eval_steps or [total])))
+        unknown = sorted(set(self.algo_epochs) - set(ALGO_CONFIGS))
+        if unknown:
+            raise ValueError(f"algo_epochs names unknown algorithm(s) {unknown}; accepted: {sorted(ALGO_CONFIGS)}")
+        for algo, epochs in self.algo_epochs.items():
+            if int(epochs) < 1:
+                raise ValueError(f"algo_epochs of {algo} must be a positive integer, got {epochs!r}")
+        total = max(self.total_steps_of(algo) for algo in self.algos)
+        steps = sorted(set(int(k) for k in (self.eval_steps or [self.total_steps])))
         bad = [k for k in steps if k < 1 or k > total or k % self.steps_per_epoch]
         if bad:
             raise ValueError(
@@ -118,11 +138,29 @@ class PipelineSettings:
     def total_steps(self) -> int:
         return self.epochs * self.steps_per_epoch
 
+    def epochs_of(self, algo: str) -> int:
+        return int(self.algo_epochs.get(algo, self.epochs))
+
+    def total_steps_of(self, algo: str) -> int:
+        return self.epochs_of(algo) * self.steps_per_epoch
+
+    def steps_of(self, algo: str) -> list[int]:
+        """The gradient steps at which ``algo``'s checkpoints are evaluated."""
+        total = self.total_steps_of(algo)
+        own_end = {total} if algo in self.algo_epochs else set()
+        return sorted({k for k in self.eval_steps if k <= total} | own_end)
+
+    @property
+    def sweeps_steps(self) -> bool:
+        """Whether the run's checkpoints are evaluated at more than one step count."""
+        return len({k for algo in self.algos for k in self.steps_of(algo)}) > 1
+
     def model_label(self, profile: str, algo: str, demos_per_food: int, steps: int) -> str:
-        """A trained checkpoint's column: profile and algorithm, plus demos and steps when the run sweeps them."""
+        """A trained checkpoint's column: profile and algorithm, plus demos and steps when the run sweeps them
+        (or its algorithms train for different budgets)."""
         label = f"{profile} {ALGO_LABELS[algo]}"
         label += f" {demos_per_food} demos" if len(self.demos_per_food) > 1 else ""
-        label += f" {_steps_label(steps)} steps" if len(self.eval_steps) > 1 else ""
+        label += f" {_steps_label(steps)} steps" if self.sweeps_steps else ""
         return label
 
     def own_agents(self) -> list[str]:
@@ -133,14 +171,15 @@ class PipelineSettings:
                 self.model_label(profile, algo, n, k)
                 for algo in self.algos
                 for n in self.demos_per_food
-                for k in self.eval_steps
+                for k in self.steps_of(algo)
             ]
         return names
 
 
-def _run_logged(command: list[str], log_path: Path, what: str) -> float:
-    """Runs a command with its output in ``log_path``; returns its wall time, raises StageError on failure."""
-    env = dict(os.environ)
+def _run_logged(command: list[str], log_path: Path, what: str, environ: dict[str, str] | None = None) -> float:
+    """Runs a command (with ``environ`` added to this environment) with its output in ``log_path``; returns its wall
+    time, raises StageError on failure."""
+    env = dict(os.environ, **(environ or {}))
     use_headless_rendering(environ=env)
     env.setdefault("PYNPUT_BACKEND", "dummy")
     start = time.perf_counter()
@@ -204,12 +243,13 @@ def record_food(
     n_grains: int | None = None,
     cameras: tuple[str, ...] = (),
     workers: int = 1,
+    ray: str | None = None,
 ) -> float | None:
     """
-    Records ``demos`` successful scripted demos of ``food`` into ``path`` (attempt seeds from ``seed``); returns
-    the seconds taken, or None when the file already holds them (recorded with the same settings). A file with
-    fewer (a killed or smaller recording) is continued from the seed after its last attempt: the demos are those
-    one uninterrupted recording would have kept.
+    Records ``demos`` successful scripted demos of ``food`` into ``path`` (attempt seeds from ``seed``, in
+    ``workers`` processes, or on the Ray cluster at ``ray``); returns the seconds taken, or None when the file
+    already holds them (recorded with the same settings). A file with fewer (a killed or smaller recording) is
+    continued from the seed after its last attempt: the demos are those one uninterrupted recording would have kept.
 
     Raises:
         StageError: [the file was recorded with other settings, or recording failed]
@@ -237,6 +277,8 @@ def record_food(
     ]
     if n_grains is not None:
         command += ["--n-grains", str(n_grains)]
+    if ray is not None:
+        command += ["--ray", ray]
     log = path.with_name(f"{path.stem}.seed{seed}.log")
     return _run_logged(command, log, f"recording {food} ({profile})")
 
@@ -292,6 +334,7 @@ def record_scripted_dataset(
     cameras: tuple[str, ...] = (),
     workers: int = 1,
     say=print,
+    ray: str | None = None,
 ) -> float:
     """Records (or finds complete) max(``demo_counts``) scripted demos of each food, one file per food beside
     ``path``, and merges them into ``path`` with a mask per demo count; returns the seconds spent recording."""
@@ -302,7 +345,7 @@ def record_scripted_dataset(
     for food in foods:
         file = folder / f"{food}.hdf5"
         seconds = record_food(
-            file, food, max(demo_counts), profile, food_seed(seed, food), horizon, n_grains, cameras, workers
+            file, food, max(demo_counts), profile, food_seed(seed, food), horizon, n_grains, cameras, workers, ray
         )
         if seconds is None:
             say(f"skipping recording {profile} {food}: {file} holds its {max(demo_counts)} demos")
@@ -366,10 +409,33 @@ def _without_save_epochs(config: dict) -> dict:
     return out
 
 
-def train_checkpoint(config: dict, work_dir: Path, say=print) -> tuple[dict[int, Path], float | None]:
+def finished_training(config: dict, work_dir: Path) -> dict[int, Path] | None:
     """
-    Trains with veragmil-train unless a finished run of the same config holding every checkpoint asked for is
-    there; returns the checkpoints by epoch and the wall time (None when skipped).
+    The checkpoints by epoch of a finished run of this config that holds every checkpoint asked for; None when it
+    is to be trained.
+
+    Raises:
+        StageError: [the run's folder holds another config]
+    """
+    config_file = Path(work_dir) / f"{config['experiment']['name']}.json"
+    if not config_file.exists():
+        return None
+    held = json.loads(config_file.read_text())
+    if _without_save_epochs(held) != _without_save_epochs(config):
+        name = config["experiment"]["name"]
+        raise StageError(f"{config_file} holds another config for {name}; use another output directory")
+    found = _checkpoints(config)
+    wanted = {int(config["train"]["num_epochs"]), *config["experiment"]["save"].get("epochs", [])}
+    return found if wanted <= set(found) else None
+
+
+def train_checkpoint(
+    config: dict, work_dir: Path, say=print, torch_threads: int | None = None
+) -> tuple[dict[int, Path], float | None]:
+    """
+    Trains with veragmil-train (with ``torch_threads`` torch threads when given, else $VERAGMIL_TORCH_THREADS or
+    robomimic's 2) unless a finished run of the same config holding every checkpoint asked for is there; returns
+    the checkpoints by epoch and the wall time (None when skipped).
 
     Raises:
         StageError: [training failed or wrote no last checkpoint, or the run's folder holds another config]
@@ -379,27 +445,42 @@ def train_checkpoint(config: dict, work_dir: Path, say=print) -> tuple[dict[int,
     config_file = work_dir / f"{name}.json"
     epochs = int(config["train"]["num_epochs"])
     wanted = {epochs, *config["experiment"]["save"].get("epochs", [])}
+    found = finished_training(config, work_dir)
+    if found is not None:
+        say(f"skipping training {name}: its checkpoints are there ({found[epochs].parent})")
+        return found, None
     if config_file.exists():
-        held = json.loads(config_file.read_text())
-        if _without_save_epochs(held) != _without_save_epochs(config):
-            raise StageError(f"{config_file} holds another config for {name}; use another output directory")
-        found = _checkpoints(config)
-        if wanted <= set(found):
-            say(f"skipping training {name}: its checkpoints are there ({found[epochs].parent})")
-            return found, None
         # killed, or saved at other epochs: train again, saving both
+        held = json.loads(config_file.read_text())
         saved = set(held["experiment"]["save"].get("epochs", [])) | set(config["experiment"]["save"]["epochs"])
         config = json.loads(json.dumps(config))
         config["experiment"]["save"]["epochs"] = sorted(saved - {epochs})
         shutil.rmtree(Path(config["train"]["output_dir"]) / name, ignore_errors=True)
     config_file.write_text(json.dumps(config, indent=4))
-    seconds = _run_logged(
-        [*_console("veragmil-train"), "--config", str(config_file)], work_dir / f"{name}.log", f"training {name}"
-    )
+    environ = {}
+    if torch_threads is not None:
+        environ = {"VERAGMIL_TORCH_THREADS": str(torch_threads), "OMP_NUM_THREADS": str(torch_threads)}
+    command = [*_console("veragmil-train"), "--config", str(config_file)]
+    seconds = _run_logged(command, work_dir / f"{name}.log", f"training {name}", environ=environ)
     found = _checkpoints(config)
     if not wanted <= set(found):
         raise StageError(f"training {name} wrote no last checkpoint under {config['train']['output_dir']}/{name}")
     return found, seconds
+
+
+def _train_piece(context: tuple[Path, int | None], config: dict) -> tuple[dict[int, Path], float | None]:
+    """A training run as a piece (veragmil_suite.distributed): ``context`` is (work_dir, torch threads)."""
+    work_dir, threads = context
+    return train_checkpoint(config, work_dir, say=lambda _: None, torch_threads=threads)
+
+
+def training_resources() -> Resources:
+    """What a training run holds on a Ray node: a CPU per torch thread ($VERAGMIL_TORCH_THREADS, else robomimic's
+    2), and a GPU when the cluster has one (robomimic trains on it)."""
+    from veragmil_suite.distributed import cluster_resources
+
+    threads = int(os.environ.get("VERAGMIL_TORCH_THREADS") or ROBOMIMIC_TORCH_THREADS)
+    return Resources(cpus=threads, gpus=1 if cluster_resources().get("GPU", 0) >= 1 else 0)
 
 
 # ---------------------------------------------------------------------------------------------------------------- #
@@ -413,7 +494,7 @@ def _steps_label(steps: int) -> str:
 
 def run_pipeline(settings: PipelineSettings, progress: bool = True):
     """Records one dataset per profile, trains every algorithm on each, evaluates them and the scripted operators,
-    skipping every piece a previous run in the same output directory completed.
+    skipping every piece a previous run in the same output directory completed; with ``settings.ray``, on Ray.
 
     Returns the evaluation result (veragmil_suite.evaluation.EvaluationResult); everything is written under
     ``settings.output_dir``: data/, runs/, eval/ and timings.json.
@@ -425,7 +506,6 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True):
     (out / "runs").mkdir(parents=True, exist_ok=True)
     timings_file = out / "timings.json"
     timings: dict[str, float] = json.loads(timings_file.read_text()) if timings_file.exists() else {}
-    agents: dict[str, str] = {}
 
     def say(message: str) -> None:
         if progress:
@@ -436,74 +516,121 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True):
             timings[key] = round(seconds, 1)
             timings_file.write_text(json.dumps(timings, indent=2))
 
-    points: list[dict] = []
-    sweep_demos = len(settings.demos_per_food) > 1
-    sweep_steps = len(settings.eval_steps) > 1
-    for profile in settings.profiles:
-        dataset = out / "data" / f"{profile}.hdf5"
-        counts = settings.demos_per_food
-        say(f"recording {max(counts)} scripted '{profile}' demos of each of {settings.train_foods}")
-        seconds = record_scripted_dataset(
-            dataset,
-            settings.train_foods,
-            counts,
-            profile=profile,
-            seed=settings.seed,
-            horizon=settings.horizon,
-            n_grains=settings.n_grains,
-            workers=settings.processes,
-            say=say,
-        )
-        note(f"record {profile}", seconds or None)
-        if settings.score_demonstrators:
-            # the demonstrator itself, live on every evaluated food: the paper's Human column (scripted here)
-            agents[f"{profile} operator"] = f"expert:{profile}"
-        for algo in settings.algos:
-            for n in counts:
-                name = f"{profile}_{algo}_{n}demos_{settings.total_steps}steps"
-                config = training_config(
-                    algo,
-                    dataset,
-                    out / "runs",
-                    name,
-                    settings.epochs,
-                    settings.steps_per_epoch,
-                    seed=settings.seed + 1,
-                    filter_key=demo_mask(n),
-                    save_epochs=[k // settings.steps_per_epoch for k in settings.eval_steps],
-                )
-                steps = f"{settings.epochs} x {settings.steps_per_epoch}"
-                say(f"training {ALGO_LABELS[algo]} on {n} demos per food of {dataset.name} ({steps} gradient steps)")
-                checkpoints, seconds = train_checkpoint(config, out / "runs", say=say)
-                note(f"train {name}", seconds)
-                for k in settings.eval_steps:
-                    label = settings.model_label(profile, algo, n, k)
-                    agents[label] = str(checkpoints[k // settings.steps_per_epoch])
-                    points.append(dict(agent=label, profile=profile, algo=algo, demos_per_food=n, steps=k))
+    with ray_session(settings.ray) as address:
+        if address is not None:
+            from veragmil_suite.distributed import cluster_resources
 
-    agents.update(settings.agents)
-    say(f"evaluating {len(agents)} agents x {settings.episodes} episodes on {settings.eval_foods}")
-    env_kwargs = {"n_grains": settings.n_grains} if settings.n_grains is not None else None
-    start = time.perf_counter()
-    kwargs = dict(env_kwargs=env_kwargs) if env_kwargs else {}
-    result = evaluate(
-        agents,
-        foods=settings.eval_foods,
-        episodes=settings.episodes,
-        processes=settings.processes,
-        seed=settings.seed + EVAL_SEED_OFFSET,
-        horizon=settings.horizon,
-        output_dir=str(out / "eval"),
-        progress=progress,
-        resume=True,
-        say=say,
-        **kwargs,
-    )
+            held = cluster_resources()
+            cpus, gpus = held.get("CPU", 0), held.get("GPU", 0)
+            say(f"running the pieces on Ray at {address} ({cpus:g} CPUs, {gpus:g} GPUs)")
+        runs: list[dict] = []  # every training run, in the grid's order
+        for profile in settings.profiles:
+            dataset = out / "data" / f"{profile}.hdf5"
+            counts = settings.demos_per_food
+            say(f"recording {max(counts)} scripted '{profile}' demos of each of {settings.train_foods}")
+            seconds = record_scripted_dataset(
+                dataset,
+                settings.train_foods,
+                counts,
+                profile=profile,
+                seed=settings.seed,
+                horizon=settings.horizon,
+                n_grains=settings.n_grains,
+                workers=settings.processes,
+                say=say,
+                ray=address,
+            )
+            note(f"record {profile}", seconds or None)
+            for algo in settings.algos:
+                for n in counts:
+                    name = f"{profile}_{algo}_{n}demos_{settings.total_steps_of(algo)}steps"
+                    config = training_config(
+                        algo,
+                        dataset,
+                        out / "runs",
+                        name,
+                        settings.epochs_of(algo),
+                        settings.steps_per_epoch,
+                        seed=settings.seed + 1,
+                        filter_key=demo_mask(n),
+                        save_epochs=[k // settings.steps_per_epoch for k in settings.steps_of(algo)],
+                    )
+                    runs.append(dict(profile=profile, algo=algo, demos_per_food=n, config=config))
+        checkpoints = _train_runs(runs, settings, out / "runs", address, say, note)
+
+        agents: dict[str, str] = {}
+        points: list[dict] = []
+        for profile in settings.profiles:
+            if settings.score_demonstrators:
+                # the demonstrator itself, live on every evaluated food: the paper's Human column (scripted here)
+                agents[f"{profile} operator"] = f"expert:{profile}"
+            for run in (r for r in runs if r["profile"] == profile):
+                saved = checkpoints[run["config"]["experiment"]["name"]]
+                algo, n = run["algo"], run["demos_per_food"]
+                for k in settings.steps_of(algo):
+                    label = settings.model_label(profile, algo, n, k)
+                    agents[label] = str(saved[k // settings.steps_per_epoch])
+                    points.append(dict(agent=label, profile=profile, algo=algo, demos_per_food=n, steps=k))
+        agents.update(settings.agents)
+        say(f"evaluating {len(agents)} agents x {settings.episodes} episodes on {settings.eval_foods}")
+        env_kwargs = {"n_grains": settings.n_grains} if settings.n_grains is not None else None
+        start = time.perf_counter()
+        kwargs = dict(env_kwargs=env_kwargs) if env_kwargs else {}
+        result = evaluate(
+            agents,
+            foods=settings.eval_foods,
+            episodes=settings.episodes,
+            processes=settings.processes,
+            seed=settings.seed + EVAL_SEED_OFFSET,
+            horizon=settings.horizon,
+            output_dir=str(out / "eval"),
+            progress=progress,
+            resume=True,
+            say=say,
+            ray=address,
+            **kwargs,
+        )
     if result.config["episodes_run"]:  # a fully journaled evaluation keeps the time of the run that did it
         note("evaluate", time.perf_counter() - start)
-    if sweep_demos or sweep_steps:
+    if len(settings.demos_per_food) > 1 or settings.sweeps_steps:
         write_learning_curves(result, points, out / "eval")
     return result
+
+
+def _train_runs(runs: list[dict], settings: PipelineSettings, work_dir: Path, address: str | None, say, note):
+    """Every training run of ``runs`` that is not finished, one after another here or all at once on Ray (at
+    ``address``); returns each run's checkpoints by epoch, by run name."""
+    checkpoints: dict[str, dict[int, Path]] = {}
+    todo = []
+    for run in runs:
+        config = run["config"]
+        name = config["experiment"]["name"]
+        found = finished_training(config, work_dir)
+        if found is not None:
+            last = int(config["train"]["num_epochs"])
+            say(f"skipping training {name}: its checkpoints are there ({found[last].parent})")
+            checkpoints[name] = found
+        else:
+            todo.append(run)
+
+    def announced(todo: list[dict]):
+        for run in todo:
+            steps = f"{run['config']['train']['num_epochs']} x {settings.steps_per_epoch}"
+            dataset = Path(run["config"]["train"]["data"]).name
+            label = ALGO_LABELS[run["algo"]]
+            say(f"training {label} on {run['demos_per_food']} demos per food of {dataset} ({steps} gradient steps)")
+            yield run["config"]
+
+    on_ray = address is not None
+    resources = training_resources() if on_ray else Resources()
+    # on Ray a run takes as many torch threads as it holds CPUs; here, those of $VERAGMIL_TORCH_THREADS or robomimic
+    context = (work_dir, int(resources.cpus) if on_ray else None)
+    pieces = run_pieces(_train_piece, announced(todo), context=context, processes=0, on_ray=on_ray, resources=resources)
+    with contextlib.closing(pieces):
+        for config, (found, seconds) in pieces:
+            checkpoints[config["experiment"]["name"]] = found
+            note(f"train {config['experiment']['name']}", seconds)
+    return checkpoints
 
 
 def learning_curves(result, points: list[dict]) -> list[dict]:

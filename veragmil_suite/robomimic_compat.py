@@ -46,6 +46,11 @@ robomimic's train.py:
       a clear message instead of a bare StopIteration.
     - the torch thread count is fixed at 2: with 2 cores and any other process running, OpenMP threads stall (1
       thread trained BC 5-10x faster here under load). $VERAGMIL_TORCH_THREADS sets it (unset: robomimic's 2).
+    - observation normalization (``train.hdf5_normalize_obs``) failed on the first batch: the dataset normalizes
+      each sample, run_epoch normalizes the batch a second time, and ``normalize_obs`` rejects any leading
+      dimension but one of size 1 (a batch, BC-RNN's time axis). Fixed upstream after 0.3.0 (robomimic pull
+      requests 81 and 82); here too: observations are normalized over any leading dimensions, once, by the
+      dataset in training and by RolloutPolicy in rollouts.
     - every training error was caught and the process still exited 0: ``prepare_train_script`` records it so the
       entry point exits non-zero.
     - robomimic's scripts cannot see a plugin environment (no import hook): importing this module imports the
@@ -96,8 +101,9 @@ def install() -> None:
     _import_torchvision()
     robomimic_obs.remember_sim_xml()
 
+    from robomimic.algo.algo import Algo
     from robomimic.envs.env_robosuite import EnvRobosuite
-    from robomimic.utils import env_utils, train_utils
+    from robomimic.utils import env_utils, obs_utils, train_utils
 
     env_utils.create_env_from_metadata = _create_env_from_metadata(env_utils.create_env_from_metadata)
     EnvRobosuite.__init__ = _env_init
@@ -105,6 +111,8 @@ def install() -> None:
     EnvRobosuite.get_observation = _env_get_observation
     EnvRobosuite.get_state = _env_get_state
     train_utils.get_exp_dir = experiment_dirs
+    obs_utils.normalize_obs = normalize_obs
+    Algo.postprocess_batch_for_training = _postprocess_without_normalizing(Algo.postprocess_batch_for_training)
     _installed = True
 
 
@@ -351,6 +359,31 @@ def prepare_train_script(module: types.ModuleType) -> TrainOutcome:
     module.train = train
     module.DataLoader = data_loader
     return outcome
+
+
+def normalize_obs(obs_dict: dict, obs_normalization_stats: dict) -> dict:
+    """robomimic's ``ObsUtils.normalize_obs`` (the same stats, of shape (1, ...)) over any leading dimensions of the
+    observations: none (a rollout step), a batch, a batch and time. Keys without statistics (an environment's extra
+    observables in rollouts) pass unchanged; a new dict is returned, the caller's is left as it was."""
+    out = dict(obs_dict)
+    for key in obs_dict.keys() & obs_normalization_stats.keys():
+        mean = np.asarray(obs_normalization_stats[key]["mean"])[0]
+        std = np.asarray(obs_normalization_stats[key]["std"])[0]
+        shape = tuple(obs_dict[key].shape)
+        if shape[len(shape) - mean.ndim :] != mean.shape:
+            raise ValueError(f"observation {key!r} of shape {shape} does not end in its statistics' {mean.shape}")
+        out[key] = (obs_dict[key] - mean) / std
+    return out
+
+
+def _postprocess_without_normalizing(postprocess):
+    """Algo.postprocess_batch_for_training, less its second normalization: the dataset normalized each sample."""
+
+    @functools.wraps(postprocess)
+    def postprocess_batch_for_training(self, batch, obs_normalization_stats):
+        return postprocess(self, batch, obs_normalization_stats=None)
+
+    return postprocess_batch_for_training
 
 
 @contextlib.contextmanager

@@ -4,6 +4,11 @@ Settling takes 1.5-4 s of simulated time (seconds of wall time), far too long fo
 in a small model of its own (table, bowl, grains: the robot does not take part) and the result, relative to the
 bowl, is kept in memory and on disk, keyed by that model's XML and the MuJoCo version. A settled pile moved or
 turned rigidly on the flat table is still settled, so one settled pile serves every bowl position.
+
+Settling is deterministic on one CPU but not across CPUs (MuJoCo's floating point differs between instruction sets,
+and thousands of contact steps amplify it), so a worker on another machine would settle other piles. A worker that
+runs pieces for a driver (a Ray task) is therefore handed the driver's piles (use_shipped_piles) and settles none
+itself: every agent meets the same piles wherever its episodes run.
 """
 
 from __future__ import annotations
@@ -47,6 +52,22 @@ class SettledPile:
 
 
 _MEMORY: dict[str, SettledPile] = {}
+# the driver's piles by key while this process runs a driver's pieces (use_shipped_piles); None: settle as usual
+_SHIPPED: dict[str, SettledPile] | None = None
+
+
+class PileNotShipped(RuntimeError):
+    """A worker needed a pile the driver did not hand it (it settles none itself: see the module's docstring)."""
+
+
+def use_shipped_piles(piles: dict[str, SettledPile] | None) -> None:
+    """
+    From now on this process takes every pile from ``piles`` (key -> SettledPile, as ScoopGranular.settled_piles
+    gives them on the driver) and raises PileNotShipped for any other, instead of reading its own cache or settling;
+    None goes back to the cache and settling.
+    """
+    global _SHIPPED
+    _SHIPPED = None if piles is None else dict(piles)
 
 
 def cache_dir() -> Path:
@@ -74,10 +95,31 @@ def pile_model_xml(bowl: Bowl, pile: GrainPile, option: dict, timestep: float) -
     return ET.tostring(root, encoding="unicode")
 
 
+def _key(xml: str) -> str:
+    return hashlib.sha256((xml + mujoco.__version__ + SETTLE_VERSION).encode()).hexdigest()[:24]
+
+
+def pile_key(bowl: Bowl, pile: GrainPile, option: dict, timestep: float) -> str:
+    """The cache key of this bowl and pile: its settling model's XML, the MuJoCo version and SETTLE_VERSION."""
+    return _key(pile_model_xml(bowl, pile, option, timestep))
+
+
 def settle(bowl: Bowl, pile: GrainPile, option: dict, timestep: float, use_disk: bool = True) -> SettledPile:
-    """The settled pile for this bowl and pile: from memory, from disk, or simulated now."""
+    """The settled pile for this bowl and pile: shipped from a driver, from memory, from disk, or simulated now.
+
+    Raises:
+        PileNotShipped: [this process runs on shipped piles (use_shipped_piles) and was not handed this one]
+    """
     xml = pile_model_xml(bowl, pile, option, timestep)
-    key = hashlib.sha256((xml + mujoco.__version__ + SETTLE_VERSION).encode()).hexdigest()[:24]
+    key = _key(xml)
+    if _SHIPPED is not None:
+        if key not in _SHIPPED:
+            raise PileNotShipped(
+                f"settled pile {key} ({pile.n_grains} grains of {pile.food.name}) was not handed over by the driver, "
+                f"which shipped {len(_SHIPPED)}; a worker settles none itself (piles differ by CPU). Is this "
+                f"worker's MuJoCo ({mujoco.__version__}) the driver's?"
+            )
+        return _SHIPPED[key]
     if key in _MEMORY:
         return _MEMORY[key]
     path = cache_dir() / f"{key}.npz"

@@ -140,6 +140,7 @@ class VRDevice(Device):
         self._head_q: np.ndarray | None = None
         self._visible = False
         self._recv_time: float | None = None
+        self._seq: int | None = None  # seq of the newest pose message (this connection)
         self._connected = False
         self._handle_s = 0.0  # seconds spent handling pose messages (server thread)
         self._handled = 0
@@ -238,6 +239,7 @@ class VRDevice(Device):
         with self._lock:
             ctrl, squeeze, trigger = self._ctrl, self._squeeze, self._trigger
             head_q, visible, recv_time, connected = self._head_q, self._visible, self._recv_time, self._connected
+            seq = self._seq
             discontinuities = self._filter.discontinuities
             events = list(self._events)
             self._events.clear()
@@ -264,6 +266,8 @@ class VRDevice(Device):
             self.grasp_states[self.active_robot][self.active_arm_index] = trigger >= 0.5
         dpos, drot, rot_frame = self._delta_to_target(controller, self._target)
         self._publish_status()
+        # the frames showing the coming step carry the pose it follows, for latency measurements
+        self.stream.note_action(seq if fresh else None, recv_time if fresh else None, now)
         return dict(
             dpos=dpos,
             rotation=rot_frame,
@@ -369,6 +373,7 @@ class VRDevice(Device):
             self._buttons.reset()
             self._ctrl = None
             self._recv_time = None
+            self._seq = None
             self._connected = True
         self._publish_status(force=True)
 
@@ -393,6 +398,7 @@ class VRDevice(Device):
             self._head_q = None if msg.head is None else msg.head.q
             self._visible = msg.visible
             self._recv_time = recv_time
+            self._seq = msg.seq
             self._events.extend(self._buttons.update({"left": msg.left, "right": msg.right}, t))
             self._handled += 1
             self._handle_s += time.perf_counter() - t0

@@ -28,7 +28,12 @@ The server sends JSON text (``welcome`` with the configuration, ``status`` about
 a second, ``error`` before closing; when the collection is over, a last ``status`` with ``"final": true`` whose
 ``text`` says what was saved, then close code ``CLOSE_FINISHED``: the page shows it and stops reconnecting)
 and binary camera frames: ``FRAME_HEADER`` (little-endian: magic ``b"VF"``,
-version, panels (1 RGB, 2 RGB|depth side by side), frame id, simulated time, width, height) then a JPEG.
+frame version, panels (1 RGB, 2 RGB|depth side by side), frame id, simulated time, width, height) then a JPEG.
+Frame version 1 has nothing more. Version 2 (``FRAME_VERSION_TIMED``, what ``vr_stream`` sends) inserts, between
+that header and the JPEG, a u16 byte count and a timing block (``FRAME_TIMING``: the control step shown, the pose
+message its action came from, and when each stage of the frame's way happened, ``time.monotonic()`` seconds of
+this machine) so a client on the same machine can attribute its latency; a parser skips the block by its count,
+so fields appended later do not break it.
 
 Unknown fields are ignored (a newer page still works); anything else unexpected raises ``ProtocolError`` with a
 ``reason`` the server counts under.
@@ -51,8 +56,28 @@ MAX_SEQ = 2**53  # JavaScript's exact-integer limit
 
 FRAME_MAGIC = b"VF"
 FRAME_HEADER = struct.Struct("<2sBBIdHH")
+FRAME_VERSION = 1  # header, JPEG
+FRAME_VERSION_TIMED = 2  # header, u16 block length, timing block, JPEG
 PANELS_RGB = 1
 PANELS_RGB_DEPTH = 2
+# the timing block: step (u32, control steps begun when the state was captured; NO_STEP: unknown), flags (u32,
+# FLAG_MID_STEP: captured while that step was still running), pose_seq (i64, seq of the newest pose message the
+# step's action was computed from; -1: none), then the TIMES (f64, time.monotonic() seconds; NaN: unknown)
+FRAME_TIMING = struct.Struct("<IIq8d")
+_BLOCK_LEN = struct.Struct("<H")
+NO_STEP = 0xFFFFFFFF
+FLAG_MID_STEP = 1
+TIMES = (
+    "pose_received",  # the server received that pose message
+    "action",  # the action was computed from it (input2action, just before the control step)
+    "captured",  # the stream copied the simulation's state
+    "render_start",  # the renderer process received the request
+    "rendered",  # the renderer read the image back
+    "encoded",  # depth colour map and JPEG done
+    "published",  # the frame was handed to the server
+    "sent",  # the server's event loop wrote it to the socket (stamped by ``stamp_sent``)
+)
+_SENT_OFFSET = FRAME_HEADER.size + _BLOCK_LEN.size + FRAME_TIMING.size - 8
 
 
 class ProtocolError(ValueError):
@@ -217,18 +242,61 @@ def server_message(kind: str, **fields) -> str:
     return json.dumps({"v": SCHEMA_VERSION, "type": kind, **fields}, separators=(",", ":"))
 
 
-def pack_frame(jpeg: bytes, frame_id: int, sim_time: float, width: int, height: int, panels: int) -> bytes:
-    """A binary camera frame: header, then the JPEG bytes."""
-    header = FRAME_HEADER.pack(FRAME_MAGIC, SCHEMA_VERSION, panels, frame_id & 0xFFFFFFFF, sim_time, width, height)
-    return header + jpeg
+def pack_frame(
+    jpeg: bytes,
+    frame_id: int,
+    sim_time: float,
+    width: int,
+    height: int,
+    panels: int,
+    timing: dict | None = None,
+) -> bytes:
+    """A binary camera frame: header, then the JPEG bytes; with ``timing`` (keys ``step``, ``mid_step``,
+    ``pose_seq`` and the ``TIMES``, any missing one unknown), a version-2 frame carrying it."""
+    version = FRAME_VERSION if timing is None else FRAME_VERSION_TIMED
+    header = FRAME_HEADER.pack(FRAME_MAGIC, version, panels, frame_id & 0xFFFFFFFF, sim_time, width, height)
+    if timing is None:
+        return header + jpeg
+    step = timing.get("step")
+    block = FRAME_TIMING.pack(
+        NO_STEP if step is None else int(step) & 0xFFFFFFFF,
+        FLAG_MID_STEP if timing.get("mid_step") else 0,
+        -1 if timing.get("pose_seq") is None else int(timing["pose_seq"]),
+        *(math.nan if timing.get(k) is None else float(timing[k]) for k in TIMES),
+    )
+    return header + _BLOCK_LEN.pack(len(block)) + block + jpeg
+
+
+def stamp_sent(frame: bytes, t: float) -> bytes:
+    """The frame with its ``sent`` time set to t (a version-1 frame, which has no timing, is returned as is)."""
+    if len(frame) < _SENT_OFFSET + 8 or frame[2] != FRAME_VERSION_TIMED:
+        return frame
+    out = bytearray(frame)
+    struct.pack_into("<d", out, _SENT_OFFSET, t)
+    return bytes(out)
 
 
 def unpack_frame(data: bytes) -> tuple[dict, bytes]:
-    """Header fields and JPEG bytes of a binary camera frame (the page does the same in JavaScript)."""
+    """Header fields and JPEG bytes of a binary camera frame (the page does the same in JavaScript); a version-2
+    frame's header has a ``timing`` dict too (``step`` None and ``pose_seq`` -1 when unknown, times NaN)."""
     if len(data) < FRAME_HEADER.size:
         raise ValueError("frame shorter than its header")
     magic, version, panels, frame_id, sim_time, width, height = FRAME_HEADER.unpack_from(data)
     if magic != FRAME_MAGIC:
         raise ValueError("not a camera frame")
     header = dict(version=version, panels=panels, frame_id=frame_id, sim_time=sim_time, width=width, height=height)
-    return header, data[FRAME_HEADER.size :]
+    start = FRAME_HEADER.size
+    if version >= FRAME_VERSION_TIMED:
+        if len(data) < start + _BLOCK_LEN.size:
+            raise ValueError("frame shorter than its timing block")
+        (n,) = _BLOCK_LEN.unpack_from(data, start)
+        start += _BLOCK_LEN.size
+        if n < FRAME_TIMING.size or len(data) < start + n:
+            raise ValueError("frame shorter than its timing block")
+        step, flags, pose_seq, *times = FRAME_TIMING.unpack_from(data, start)
+        header["timing"] = dict(
+            step=None if step == NO_STEP else step, mid_step=bool(flags & FLAG_MID_STEP), pose_seq=pose_seq,
+            **dict(zip(TIMES, times)),
+        )  # fmt: skip
+        start += n
+    return header, data[start:]

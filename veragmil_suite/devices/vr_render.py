@@ -11,7 +11,8 @@ directly as a script; its parent (``vr_stream``) chooses its OpenGL platform in 
 4-byte little-endian length, on stdin (requests) and stdout (replies), between this process and its parent only:
 
     ("model", path)     load the model saved at path (``mj_saveModel``); reply ("model_ok", info)
-    ("frame", request)  render qpos / mocap poses; reply ("frame", result)
+    ("frame", request)  render qpos / mocap poses; reply ("frame", result: the JPEG, its size, and when rendering
+                        started and ended and encoding ended, in time.monotonic() seconds)
     ("stop",)           exit
 """
 
@@ -53,17 +54,21 @@ def encode_jpeg(rgb: np.ndarray, quality: int = 80, encoder: str = "pillow") -> 
 _DEPTH_LUT: np.ndarray | None = None
 
 
-def depth_colormap(depth_m: np.ndarray, near: float, far: float) -> np.ndarray:
-    """(H, W) metres -> (H, W, 3) uint8: turbo from red (near) to blue (far); beyond far is black."""
+def depth_colormap(depth_m: np.ndarray, near: float, far: float, out: np.ndarray | None = None) -> np.ndarray:
+    """(H, W) metres -> (H, W, 3) uint8: turbo from red (near) to blue (far) in 256 equal bins; from far on,
+    black. Written into ``out`` when given (the depth half of the streamed image: no copy to join them)."""
+    idx = ((depth_m - near) * (256.0 / (far - near))).clip(0, 256).astype(np.intp)
+    return np.take(_depth_lut(), idx, axis=0, out=out, mode="clip")
+
+
+def _depth_lut() -> np.ndarray:
     global _DEPTH_LUT
     if _DEPTH_LUT is None:
         from matplotlib import colormaps
 
-        _DEPTH_LUT = (colormaps["turbo"](np.linspace(1.0, 0.0, 256))[:, :3] * 255).astype(np.uint8)
-    idx = np.clip((depth_m - near) * (255.0 / (far - near)), 0, 255).astype(np.uint8)
-    out = _DEPTH_LUT[idx]
-    out[depth_m >= far] = 0
-    return out
+        lut = (colormaps["turbo"](np.linspace(1.0, 0.0, 256))[:, :3] * 255).astype(np.uint8)
+        _DEPTH_LUT = np.concatenate([lut, np.zeros((1, 3), np.uint8)])  # entry 256: beyond far
+    return _DEPTH_LUT
 
 
 def auto_depth_range(depth_m: np.ndarray, far_clip: float) -> tuple[float, float]:
@@ -183,7 +188,14 @@ def serve(config: dict, requests, replies) -> None:
     import mujoco
 
     renderer = Renderer(config["camera"], config["width"], config["height"])
+    side_by_side = np.empty((config["height"], 2 * config["width"], 3), np.uint8)  # RGB | depth, one JPEG
     depth_range = config["depth_range"]  # None: from the first frame of each model
+    # imports and tables made now, not in the first frame (matplotlib alone takes a good part of a second)
+    try:
+        _depth_lut()
+        encode_jpeg(side_by_side[:8, :8], config["quality"], config["encoder"])
+    except Exception:  # the first frame that needs them reports the error to the parent
+        pass
     while True:
         msg = receive(requests)
         if msg is None or msg[0] == "stop":
@@ -197,20 +209,29 @@ def serve(config: dict, requests, replies) -> None:
                 send(replies, ("model_ok", info))
             elif msg[0] == "frame":
                 req = msg[1]
-                t0 = time.perf_counter()
+                # monotonic: the same clock in every process of this machine, so the stages line up end to end
+                t0 = time.monotonic()
                 rgb, depth_m = renderer.render(req["qpos"], req["mocap_pos"], req["mocap_quat"])
-                t1 = time.perf_counter()
+                t1 = time.monotonic()
                 if depth_range is None:
                     depth_range = auto_depth_range(depth_m, renderer.far)
-                image = np.concatenate([rgb, depth_colormap(depth_m, *depth_range)], axis=1) if req["depth"] else rgb
+                if req["depth"]:
+                    image = side_by_side
+                    image[:, : renderer.width] = rgb
+                    depth_colormap(depth_m, *depth_range, out=image[:, renderer.width :])
+                else:
+                    image = rgb
                 jpeg = encode_jpeg(image, config["quality"], config["encoder"])
-                t2 = time.perf_counter()
+                t2 = time.monotonic()
                 result = dict(
                     jpeg=jpeg,
                     width=image.shape[1],
                     height=image.shape[0],
                     render_ms=1000 * (t1 - t0),
                     encode_ms=1000 * (t2 - t1),
+                    render_start=t0,
+                    rendered=t1,
+                    encoded=t2,
                     depth_m=depth_m.copy() if req.get("keep_depth") else None,
                     depth_range=depth_range,
                 )

@@ -44,6 +44,7 @@ from veragmil_suite.devices.vr_protocol import (
     ProtocolError,
     parse_client_message,
     server_message,
+    stamp_sent,
 )
 
 LOG = logging.getLogger(__name__)
@@ -597,7 +598,7 @@ class VRServer:
                     if skipped > 0:
                         self.count("frames_skipped", skipped)
                     last_frame = frame[0]
-                    await ws.send_bytes(frame[1])
+                    await ws.send_bytes(stamp_sent(frame[1], time.monotonic()))
                     self.count("frames_sent")
                 now = time.monotonic()
                 if now - order["heard"] > self.heartbeat_timeout:

@@ -1,12 +1,23 @@
 """The operator's view: the environment's camera, rendered by a separate process and sent as JPEG frames.
 
-A thread of this process samples the simulation's positions (``qpos`` and mocap poses) up to ``fps`` times a
-second, hands them to the renderer process (``vr_render``: its own OpenGL context, MuJoCo and GIL) and publishes
-the JPEG it returns. The renderer runs at a lower priority (nice 10): short of CPU, the stream drops frames before
-the simulation drops real time. The teleoperation loop never waits for a frame and a frame never waits for a step;
-a frame may mix two consecutive physics substeps (a few milliseconds apart), which no operator can see. The model
-goes to the renderer once per model (``mj_saveModel`` to a temporary file, ~10 ms): robosuite's hard reset builds
-a new one each episode, and the renderer keeps its OpenGL context when the meshes and textures are unchanged.
+A thread of this process copies the simulation's positions (``qpos`` and mocap poses) as soon as a control step
+has finished, hands them to the renderer process (``vr_render``: its own OpenGL context, MuJoCo and GIL) and
+publishes the JPEG it returns, so a frame shows each step as early as it can: what the operator sees lags the
+hand by the wait for the next control step, the step, the render and the transfer, never by a frame clock as
+well. It checks a running step for completion every millisecond (``POLL_S``), from the moment the device
+computes the step's action (``note_action``) or sees a step begun; between steps it sleeps, looking for a scene
+moved without a step (a reset) every frame period. Frames come at most ``fps`` a second (a faster control rate
+has steps skipped: each frame shows the newest one). An environment
+without robosuite's step clock (``timestep``, ``cur_time``), or ``VRStreamOptions(sync_to_steps=False)``, is
+sampled on an ``fps`` clock instead, and such a frame may show a step half done.
+
+The renderer runs at a lower priority (nice 10): short of CPU, the stream drops frames before the simulation drops
+real time. The teleoperation loop never waits for a frame. The model goes to the renderer once per model
+(``mj_saveModel`` to a temporary file, ~10 ms): robosuite's hard reset builds a new one each episode, and the
+renderer keeps its OpenGL context when the meshes and textures are unchanged.
+
+Each frame carries a timing block (``vr_protocol.pack_frame``): the control step it shows, the pose message that
+step's action came from, and when each stage happened, for ``scripts/bench_vr.py`` to attribute the latency.
 
 Depth comes from the same render pass, in metres, colour-mapped (turbo, near red to far blue) and shown beside
 the RGB image in the same JPEG: one decode and one texture on the headset.
@@ -40,6 +51,10 @@ RESTART_DELAY_S = 2.0
 # without rendering it again, so that a page that connects or drops a frame still shows it
 STILL_FRAME_REPEAT_S = 0.5
 RENDER_NICENESS = 10  # the renderer yields the CPU to the simulation: the environment must keep real time
+POLL_S = 0.001  # how often a running control step is checked for completion (s): the most a frame waits for it
+# after the device computes an action, how long (s) the stream watches for its step to begin; a step seen begun is
+# watched to its end whatever this is. Covers the loop's own work between input2action() and env.step()
+EXPECT_STEP_S = 0.03
 
 
 @dataclass(frozen=True)
@@ -56,6 +71,9 @@ class VRStreamOptions:
         jpeg_quality (int): JPEG quality, 1-100
         encoder (str): JPEG encoder, "pillow" (measured 2-3x faster on these frames, scripts/bench_vr.py) or
             "opencv"
+        sync_to_steps (bool): render each frame as soon as a control step finishes (the newest step, at most fps
+            frames a second); False: sample the simulation on an fps clock, which adds up to a frame period of
+            latency (scripts/bench_vr.py compares both)
     """
 
     width: int = 320
@@ -65,10 +83,53 @@ class VRStreamOptions:
     depth_range: tuple[float, float] | None = None
     jpeg_quality: int = 80
     encoder: str = "pillow"
+    sync_to_steps: bool = True
+
+
+def step_progress(env) -> tuple[int, bool] | None:
+    """(control steps begun, whether the last one has finished) of a robosuite environment, from its step clock:
+    ``step()`` counts ``timestep`` up before its physics and ``cur_time`` up after it. None for an environment
+    without that clock."""
+    steps, cur_time, dt = (getattr(env, name, None) for name in ("timestep", "cur_time", "control_timestep"))
+    if steps is None or cur_time is None or not dt:
+        return None
+    return int(steps), round(cur_time / dt) == steps
+
+
+def frame_decision(
+    now: float,
+    scene: tuple,
+    complete: bool,
+    shown: tuple | None,
+    last_capture: float,
+    min_interval: float,
+    expecting: bool,
+    idle_wait: float,
+) -> tuple[bool, float]:
+    """The stream's scheduling rule: (render now, seconds to wait before deciding again).
+
+    A frame is due as soon as the scene (model, simulated time, steps, positions) differs from the one last
+    ``shown`` and no control step is half done (``complete``), but no sooner than ``min_interval`` after the last
+    capture. While a step runs or one is ``expecting`` to begin, the scene is checked again after ``POLL_S``;
+    otherwise after ``idle_wait`` (the stream wakes earlier when the device computes an action).
+    """
+    if complete and scene != shown:
+        wait = last_capture + min_interval - now
+        return (True, 0.0) if wait <= 0 else (False, wait)
+    if not complete or expecting:
+        return False, POLL_S
+    return False, idle_wait
+
+
+def _positions_hash(state) -> int:
+    """What the camera sees moves only with these (an MjData, or a copy of its arrays in a dict)."""
+    get = state.get if isinstance(state, dict) else lambda name: getattr(state, name)
+    return hash((get("qpos").tobytes(), get("mocap_pos").tobytes(), get("mocap_quat").tobytes()))
 
 
 class CameraStream:
-    """Renders one camera of a robosuite env at up to ``options.fps`` and hands each frame to ``on_frame``.
+    """Renders one camera of a robosuite env after each control step (at most ``options.fps`` frames a second)
+    and hands each frame to ``on_frame``.
 
     Args:
         env: the robosuite environment (its ``sim`` is read, never written)
@@ -102,6 +163,7 @@ class CameraStream:
         self.depth_range = None if depth_range is None else (float(depth_range[0]), float(depth_range[1]))
         self.jpeg_quality = int(options.jpeg_quality)
         self.encoder = options.encoder
+        self.sync_to_steps = bool(options.sync_to_steps)
         self.on_frame = on_frame
         self.active = active or (lambda: True)
         self.keep_depth = keep_depth
@@ -121,6 +183,9 @@ class CameraStream:
         self._model = None
         self._model_file = Path(tempfile.gettempdir()) / f"veragmil_vr_{os.getpid()}_{id(self)}.mjb"
         self._stop = threading.Event()
+        self._wake = threading.Event()  # an action was computed (a step is about to run), or stop
+        self._actions: dict[int, tuple[int | None, float | None, float]] = {}  # step -> its action's origin
+        self._actions_lock = threading.Lock()
         self._thread: threading.Thread | None = None
 
     # ------------------------------------------------------------------ lifecycle
@@ -137,11 +202,24 @@ class CameraStream:
 
     def stop(self) -> None:
         self._stop.set()
+        self._wake.set()
         if self._thread is not None:
             self._thread.join(10.0)
             self._thread = None
         self._kill()
         self._model_file.unlink(missing_ok=True)
+
+    def note_action(self, pose_seq: int | None, pose_received: float | None, action_time: float) -> None:
+        """The device computed the action of the next control step from pose message ``pose_seq`` (received at
+        ``pose_received``) at ``action_time`` (``time.monotonic()``): the frames of that step say so, and the
+        stream watches for the step to finish."""
+        progress = step_progress(self.env)
+        if progress is not None:
+            with self._actions_lock:
+                self._actions[progress[0] + 1] = (pose_seq, pose_received, action_time)
+                for step in [s for s in self._actions if s < progress[0] - 8]:
+                    del self._actions[step]
+        self._wake.set()
 
     def stats(self) -> dict:
         n = max(self.frames, 1)
@@ -224,22 +302,42 @@ class CameraStream:
     # ------------------------------------------------------------------ sampling thread
     def _run(self) -> None:
         period = 1.0 / self.fps
-        next_t = time.monotonic()
-        last_sim_time = None
+        shown = None  # the scene of the last frame rendered
+        last_capture = -float("inf")
+        expect_until = 0.0
         while not self._stop.is_set():
-            delay = next_t - time.monotonic()
-            if delay > 0 and self._stop.wait(delay):
-                break
-            next_t = max(next_t + period, time.monotonic())
+            now = time.monotonic()
+            if self._wake.is_set():
+                self._wake.clear()
+                if self.sync_to_steps:
+                    expect_until = now + EXPECT_STEP_S
             if not self.active():
-                last_sim_time = None
+                shown = None  # whoever connects next gets a fresh frame
+                self._wake.wait(period)
                 continue
+            wait = period
             try:
                 if self._proc is None or self._proc.poll() is not None:
                     self._kill()
                     self._spawn()
                     self.restarts += 1
-                last_sim_time = self._frame(last_sim_time)
+                observed = self._scene()
+                if observed is None:  # no simulation (a hard reset is building the next one)
+                    self._wake.wait(period)
+                    continue
+                sim, scene, complete = observed
+                render, wait = frame_decision(
+                    now, scene, complete, shown, last_capture, period, now < expect_until, period
+                )
+                if render:
+                    captured = self._frame(sim)
+                    if captured is not None:
+                        shown, last_capture, expect_until = captured, now, 0.0
+                        continue
+                    wait = POLL_S  # a step began while the state was copied: copy it again once it is over
+                elif scene == shown and self._last_frame is not None:
+                    if now - self._last_frame[1] >= STILL_FRAME_REPEAT_S:
+                        self._send(self._last_frame[0])  # nothing moved: the same frame again, not rendered again
             except Exception as e:  # a frame lost is better than a stream lost: restart the renderer, go on
                 self.errors += 1
                 self.error = f"{e.__class__.__name__}: {e}"
@@ -248,20 +346,36 @@ class CameraStream:
                 self._kill()
                 if self._stop.wait(RESTART_DELAY_S):
                     break
+                continue
+            if wait > POLL_S:
+                self._wake.wait(wait)  # an action computed meanwhile wakes the stream at once
+            else:
+                self._stop.wait(wait)
 
-    def _frame(self, last_sim_time: float | None) -> float | None:
-        sim = getattr(self.env, "sim", None)
-        if sim is None:
-            return last_sim_time
-        model, data = sim.model._model, sim.data._data
-        if float(data.time) == last_sim_time and model is self._model:
-            # nothing moved since the last frame: no new render, but the same frame again now and then
-            if self._last_frame is not None and time.monotonic() - self._last_frame[1] >= STILL_FRAME_REPEAT_S:
-                self._send(self._last_frame[0])
-            return last_sim_time
+    def _scene(self) -> tuple[tuple, tuple, bool] | None:
+        """((model, data), the scene's identity, whether it can be shown: with ``sync_to_steps``, no control step
+        may be half done); None without a simulation. The identity is the model, the simulated time, the control
+        steps begun and a hash of the positions: a reset moves everything without a step or a tick of the clock."""
+        env = self.env
+        sim = getattr(env, "sim", None)
+        try:
+            model, data = sim.model._model, sim.data._data
+        except AttributeError:  # no simulation, or one a hard reset freed
+            return None
+        progress = step_progress(env)
+        scene = (id(model), float(data.time), None if progress is None else progress[0], _positions_hash(data))
+        return (model, data), scene, progress is None or progress[1] or not self.sync_to_steps
+
+    def _frame(self, sim: tuple) -> tuple | None:
+        """Render and publish the state of sim (model, data), and return its scene (as ``_scene``: the simulation
+        may have moved on since that was read); None when a control step began while the state was being copied
+        (with ``sync_to_steps``), and nothing was rendered."""
+        env = self.env
+        model, data = sim
         if model is not self._model:
             self._send_model(model)
-        sim_time = float(data.time)
+        before = step_progress(env)
+        captured = time.monotonic()
         request = dict(
             qpos=np.array(data.qpos),
             mocap_pos=np.array(data.mocap_pos),
@@ -269,6 +383,19 @@ class CameraStream:
             depth=self.depth,
             keep_depth=self.keep_depth,
         )
+        sim_time = float(data.time)
+        after = step_progress(env)
+        if self.sync_to_steps and before is not None and (after != before or not before[1]):
+            return None  # timestep counts up before any physics: unchanged, the copy is of one finished step
+        scene = (id(model), sim_time, None if before is None else before[0], _positions_hash(request))
+        timing = dict(captured=captured)
+        if before is not None:
+            with self._actions_lock:
+                pose_seq, pose_received, action_time = self._actions.get(before[0], (None, None, None))
+            timing.update(
+                step=before[0], mid_step=not before[1], pose_seq=pose_seq, pose_received=pose_received,
+                action=action_time,
+            )  # fmt: skip
         t0 = time.perf_counter()
         _, result = self._request(("frame", request), timeout=30.0)
         self._frame_ms += 1000 * (time.perf_counter() - t0)
@@ -279,8 +406,11 @@ class CameraStream:
         if result["depth_m"] is not None:
             self.last_depth_m = result["depth_m"]
         self.shown_depth_range = result["depth_range"]
-        self._send(pack_frame(result["jpeg"], self.frames, sim_time, result["width"], result["height"], panels))
-        return sim_time
+        timing.update(render_start=result["render_start"], rendered=result["rendered"], encoded=result["encoded"])
+        timing["published"] = time.monotonic()
+        frame = pack_frame(result["jpeg"], self.frames, sim_time, result["width"], result["height"], panels, timing)
+        self._send(frame)
+        return scene
 
     def _send(self, frame: bytes) -> None:
         self._last_frame = (frame, time.monotonic())

@@ -22,7 +22,7 @@ from veragmil_suite.models.dish import DishShape
 from veragmil_suite.models.grains import GrainPile
 from veragmil_suite.models.scoop_task import PHYSICS_TIMESTEP_S, PILE_SOLVER_OPTIONS, ScoopTask
 from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
-from veragmil_suite.settling import settle
+from veragmil_suite.settling import SettledPile, pile_key, settle
 
 M3_PER_CM3 = 1e-6
 # the largest grain count accepted, as a multiple of the food's default (veragmil_suite.bench times 1x, 2x and 4x)
@@ -354,6 +354,21 @@ class ScoopGranular(ManipulationEnv):
         return GrainPile(
             self.food, self.n_grains, np.random.default_rng([variant, self.n_grains, *map(ord, self.food.name)])
         )
+
+    def settled_piles(self) -> dict[str, SettledPile]:
+        """
+        Every pile variant this environment can draw, settled here (or read from this machine's cache), by cache
+        key: what a worker elsewhere is handed (veragmil_suite.settling.use_shipped_piles) to reset this
+        environment on the same piles, for any seed.
+        """
+        timestep = float(self.sim.model.opt.timestep)
+        piles = {}
+        for variant in range(self.pile_variants):
+            pile = self._pile(variant)
+            piles[pile_key(self.bowl, pile, self.solver_options, timestep)] = settle(
+                self.bowl, pile, self.solver_options, timestep
+            )
+        return piles
 
     def _check_loaded_grain_count(self) -> None:
         """A recorded XML of another food or grain count (a merged multi-food dataset) fails here, clearly."""

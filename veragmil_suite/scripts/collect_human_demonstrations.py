@@ -11,8 +11,9 @@ Each kept episode is flushed to the file when it ends: stopping the script (Ctrl
 the episode in progress. Giving an existing file appends to it.
 
 Attempt k (from 0) resets the environment with seed ``--seed`` + k (and seeds the scripted expert with it), so an
-episode depends on its seed alone. The scripted device can record in ``--workers`` processes: attempts run in
-parallel and are kept or discarded in seed order, so the file is the same for any number of workers.
+episode depends on its seed alone. The scripted device can record in ``--workers`` processes, or as Ray tasks with
+``--ray [ADDRESS]`` (on the piles settled here): attempts run in parallel and are kept or discarded in seed order,
+so the file is the same for any number of workers, wherever they run.
 
 Example:
     veragmil-collect --device scripted --food rice --episodes 2 --output out.hdf5
@@ -22,6 +23,8 @@ Example:
 from __future__ import annotations
 
 import argparse
+import contextlib
+import itertools
 import json
 import os
 import sys
@@ -29,6 +32,7 @@ import time
 
 import numpy as np
 
+from veragmil_suite.distributed import add_ray_argument, check_ray_argument
 from veragmil_suite.episode import SUCCESS_HOLD_S, run_until_done
 from veragmil_suite.scripts.cli import port, positive_int
 
@@ -116,6 +120,7 @@ def build_parser() -> argparse.ArgumentParser:
         "cameras' view, or a desktop emulator such as iwer, which marks every pose so); off: they release the grip",
     )
     p.add_argument("--quiet", action="store_true", help="print only the per-episode lines and the summary")
+    add_ray_argument(p, "the scripted attempts")
     return p
 
 
@@ -345,51 +350,58 @@ def local_attempts(env, recorder, operator, args, render: bool, realtime: bool):
         seed += 1
 
 
-_WORKER: dict = {}  # per recording worker process: its env, recorder, operator and arguments
+_WORKER: dict = {}  # per recording worker process: its env, recorder and operator, and the settings they were built for
 
 
-def _init_worker(args: argparse.Namespace, env_kwargs: dict) -> None:
-    """A recording worker: its own env and scripted operator, built once; Ctrl-C is the parent's to handle."""
+def _ignore_sigint() -> None:
+    """Local recording workers leave Ctrl-C to the parent, which stops the pool."""
     import signal
 
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _worker_attempt(context: tuple, seed: int):
+    """One attempt in a recording worker, whose env and scripted operator are built at its first attempt.
+    ``context``: (arguments, env kwargs, the driver's settled piles or None)."""
     import robosuite
 
     import veragmil_suite  # noqa: F401
-    from veragmil_suite import recording
+    from veragmil_suite import recording, settling
 
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    env = robosuite.make("ScoopGranular", **env_kwargs, has_renderer=False, seed=args.seed)
-    operator = ScriptedOperator(env, args.profile, args.seed)
-    _WORKER.update(env=env, recorder=recording.EpisodeRecorder(env), operator=operator, args=args)
+    args, env_kwargs, piles = context
+    settling.use_shipped_piles(piles)
+    settings = json.dumps([vars(args), env_kwargs], sort_keys=True, default=str)
+    if _WORKER.get("settings") != settings:
+        if "env" in _WORKER:
+            _WORKER["env"].close()
+        env = robosuite.make("ScoopGranular", **env_kwargs, has_renderer=False, seed=args.seed)
+        operator = ScriptedOperator(env, args.profile, args.seed)
+        _WORKER.update(env=env, recorder=recording.EpisodeRecorder(env), operator=operator, settings=settings)
+    return record_attempt(_WORKER["env"], _WORKER["recorder"], _WORKER["operator"], args, seed)
 
 
-def _worker_attempt(seed: int):
-    w = _WORKER
-    return record_attempt(w["env"], w["recorder"], w["operator"], w["args"], seed)
-
-
-def parallel_attempts(args, env_kwargs: dict):
+def parallel_attempts(args, env_kwargs: dict, piles: dict | None = None):
     """
-    Scripted attempts in ``args.workers`` processes, yielded in seed order like local_attempts (a few attempts
-    run ahead; those not needed are cancelled or dropped when the caller stops).
+    Scripted attempts in ``args.workers`` processes, or as Ray tasks (``args.ray``) on the driver's settled
+    ``piles``, yielded in seed order like local_attempts (a few attempts run ahead; those not needed are cancelled
+    or dropped when the caller stops).
     """
-    import collections
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
+    from veragmil_suite.distributed import ray_session, run_pieces
 
-    methods = multiprocessing.get_all_start_methods()
-    context = multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
-    pool = ProcessPoolExecutor(args.workers, mp_context=context, initializer=_init_worker, initargs=(args, env_kwargs))
-    ahead = collections.deque()
-    seed = args.seed
-    try:
-        while True:
-            while len(ahead) < 2 * args.workers:
-                ahead.append(pool.submit(_worker_attempt, seed))
-                seed += 1
-            yield ahead.popleft().result()
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
+    with ray_session(args.ray) as address:
+        on_ray = address is not None
+        attempts = run_pieces(
+            _worker_attempt,
+            itertools.count(args.seed),
+            context=(args, env_kwargs, piles),
+            processes=args.workers,
+            on_ray=on_ray,
+            ordered=True,
+            setup=None if on_ray else _ignore_sigint,
+        )
+        with contextlib.closing(attempts):
+            for _, attempt in attempts:
+                yield attempt
 
 
 def ask_keep(prompt: str) -> bool:
@@ -417,7 +429,8 @@ def episode_line(n: int, metrics: dict, steps: int, reason: str) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """veragmil-collect: record demonstrations (see --help)."""
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
     if args.episodes < 1:
         raise SystemExit("veragmil-collect: --episodes must be at least 1")
     if args.workers < 1:
@@ -426,6 +439,9 @@ def main(argv: list[str] | None = None) -> int:
         raise SystemExit(
             f"veragmil-collect: --workers {args.workers} needs --device scripted (one person drives one device)"
         )
+    if args.ray is not None and args.device != "scripted":
+        raise SystemExit("veragmil-collect: --ray needs --device scripted (one person drives one device)")
+    check_ray_argument(parser, args)
     if not os.environ.get("DISPLAY"):
         os.environ.setdefault("PYNPUT_BACKEND", "dummy")  # robosuite.devices imports pynput, which wants X
     if args.cameras:
@@ -480,7 +496,8 @@ def main(argv: list[str] | None = None) -> int:
     writer.provenance["env_seed"] = args.seed
 
     # the environment is built here in every case: a bad setting is refused before anything is recorded (nothing is
-    # written before the first episode), and with workers it settles the piles they then read from the disk cache
+    # written before the first episode), and with workers it settles the piles: local workers read them from the
+    # disk cache, Ray workers are handed them
     operator = None
     try:
         env = robosuite.make(
@@ -493,10 +510,11 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as e:
         print(f"veragmil-collect: {e}", file=sys.stderr)
         return 2
-    if args.workers > 1:
+    if args.workers > 1 or args.ray is not None:
+        piles = env.settled_piles() if args.ray is not None else None
         env.close()
         env = None
-        attempts_iter = parallel_attempts(args, env_kwargs)
+        attempts_iter = parallel_attempts(args, env_kwargs, piles)
     else:
         operator = make_operator(args, env)
         recorder = recording.EpisodeRecorder(env)
@@ -504,6 +522,7 @@ def main(argv: list[str] | None = None) -> int:
     kept, attempts, results = 0, 0, []
     if not args.quiet:
         workers = f", {args.workers} workers" if args.workers > 1 else ""
+        workers = ", on Ray" if args.ray is not None else workers
         print(
             f"recording {args.food} with {args.device} ({operator_name}) into {args.output}; keep: {keep_policy}"
             + workers

@@ -7,6 +7,8 @@ write the paper's Tables II and III (markdown, CSV, JSON), a success bar chart a
 
 Episode i of every food runs with env seed --seed + i for every agent (the same bowls for all). Table III's time
 is the mean over successful episodes ("-" when none succeeded); failures' episode lengths stay in episodes.csv.
+With --ray [ADDRESS] every episode is a Ray task of one CPU (on a cluster: see the README), scored on the piles
+settled on this machine.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import inspect
 import json
 import sys
 
+from veragmil_suite.distributed import add_ray_argument, check_ray_argument
 from veragmil_suite.evaluation import ALL_FOODS, DEFAULT_VIDEO_CAMERA, SPEC_HELP, evaluate, parse_agent_argument
 from veragmil_suite.scripts.cli import non_negative_int, positive_int
 
@@ -54,7 +57,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--foods", nargs="+", default=list(ALL_FOODS), help=f"foods (default: all, {' '.join(ALL_FOODS)})")
     p.add_argument("--episodes", type=positive_int, default=10, help="episodes per agent and food (default 10)")
-    p.add_argument("--processes", type=positive_int, default=2, help="parallel worker processes (default 2)")
+    p.add_argument(
+        "--processes",
+        type=positive_int,
+        default=2,
+        help="parallel worker processes (default 2; with --ray, the least number of episodes in flight)",
+    )
     p.add_argument("--output-dir", required=True, help="folder for the tables, plot, episodes and videos")
     p.add_argument("--seed", type=int, default=0, help="episode i runs with env seed SEED + i (default 0)")
     p.add_argument("--horizon", type=positive_int, default=None, help="steps per episode (default: the env's)")
@@ -67,12 +75,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="JSON of robosuite.make keyword arguments for every env, e.g. '{\"n_grains\": 12}'",
     )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_ray_argument(p, "the episodes")
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    check_ray_argument(parser, args)
     from veragmil_suite.evaluation import check_foods
 
     agents: dict[str, str] = {}
@@ -97,6 +107,7 @@ def main(argv: list[str] | None = None) -> int:
         progress=not args.quiet,
         env_kwargs=args.env_kwargs,
         video_camera=args.video_camera,
+        ray=args.ray,
     )
     print(result.markdown())
     print(f"written to {args.output_dir}")

@@ -15,7 +15,6 @@ import json
 import os
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
@@ -71,6 +70,13 @@ def run_expert_episode(
     return out
 
 
+def _episode_piece(context: tuple[str, str], piece: tuple[str, int]) -> dict:
+    """run_expert_episode as a piece of veragmil_suite.distributed: (food, seed) of context's (profile, robot)."""
+    profile, robot = context
+    food, seed = piece
+    return run_expert_episode(food, seed, profile, robot=robot)
+
+
 def summarize(results: list[dict]) -> dict:
     """Per food: success rate, spilled pieces and volume, spill fraction, completion time (successes)."""
     out = {}
@@ -103,19 +109,20 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     p.add_argument("--json", default=None, help="also write every episode and the summary to this file")
     args = p.parse_args(argv)
-    seeds = range(args.first_seed, args.first_seed + args.episodes)
-    jobs = [(f, s, args.profile, SUCCESS_HOLD_S, None, args.robot) for s in seeds for f in args.foods]
+    from veragmil_suite.distributed import run_pieces
+
+    jobs = [(f, s) for s in range(args.first_seed, args.first_seed + args.episodes) for f in args.foods]
     results = []
-    with ProcessPoolExecutor(max_workers=args.workers) as pool:
-        for r in pool.map(run_expert_episode, *zip(*jobs)):
-            results.append(r)
-            print(
-                f"{r['food']:<10} seed {r['seed']:<3} {'SUCCESS' if r['success'] else 'failure':<8} "
-                f"{r['end_reason']:<8} {r['steps']:>4} steps  in spoon {r['grains_in_spoon']:>3} "
-                f"(peak {r['peak_grains_in_spoon']})  spilled {r['grains_spilled']} ({100 * r['spill_fraction']:.1f}%)"
-                f"  time {r['completion_time_s']:.2f} s",
-                flush=True,
-            )
+    pieces = run_pieces(_episode_piece, jobs, context=(args.profile, args.robot), processes=args.workers, ordered=True)
+    for _, r in pieces:
+        results.append(r)
+        print(
+            f"{r['food']:<10} seed {r['seed']:<3} {'SUCCESS' if r['success'] else 'failure':<8} "
+            f"{r['end_reason']:<8} {r['steps']:>4} steps  in spoon {r['grains_in_spoon']:>3} "
+            f"(peak {r['peak_grains_in_spoon']})  spilled {r['grains_spilled']} ({100 * r['spill_fraction']:.1f}%)"
+            f"  time {r['completion_time_s']:.2f} s",
+            flush=True,
+        )
     summary = summarize(results)
     print(f"\n{args.robot}, profile {args.profile}, {args.episodes} episodes per food")
     print("food        success  spilled(pieces)  spilled(cm3)  spill%  in spoon  time(s)")

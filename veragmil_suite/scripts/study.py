@@ -7,10 +7,12 @@ checkpoint, and each scripted operator itself (the "Human" column's stand-in), i
 Tables II and III (markdown, CSV, JSON), the stage table and a bar chart land in <output-dir>/eval.
 
 Run again with the same --output-dir, an interrupted or partial study resumes: recordings, trainings and
-evaluation episodes already complete are skipped (each named), so a grid can be run in pieces.
+evaluation episodes already complete are skipped (each named), so a grid can be run in pieces. With --ray [ADDRESS]
+the pieces run as Ray tasks, on this machine or spread over a cluster's nodes (README: "On a cluster").
 
     veragmil-study                                   # small default: minutes per model on 2 cores
     veragmil-study --demos-per-food 30 --epochs 2000 --episodes 50    # the paper's sizes (see the README)
+    veragmil-study --demos-per-food 30 --epochs 2000 --episodes 50 --ray HEAD:6379 --output-dir /shared/study
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import os
 import sys
 import time
 
+from veragmil_suite.distributed import add_ray_argument, check_ray_argument
 from veragmil_suite.evaluation import SPEC_HELP, parse_agent_argument
 from veragmil_suite.foods import FOODS, TRAINING_FOODS, UNSEEN_FOODS
 from veragmil_suite.pipeline import ALGO_CONFIGS, PipelineSettings, StageError, run_pipeline
@@ -52,6 +55,14 @@ def add_pipeline_arguments(p: argparse.ArgumentParser, defaults: PipelineSetting
         "--steps-per-epoch", type=positive_int, default=defaults.steps_per_epoch, help="gradient steps per epoch"
     )
     p.add_argument(
+        "--algo-epochs",
+        action="append",
+        metavar="ALGO=EPOCHS",
+        default=None,
+        help="this algorithm's own number of epochs instead of --epochs (repeat for more), e.g. bc_rnn=40: "
+        "BC-RNN costs 7x BC's time per gradient step; it is evaluated at its end and at the --eval-steps it reaches",
+    )
+    p.add_argument(
         "--eval-steps",
         type=positive_int,
         nargs="+",
@@ -62,7 +73,10 @@ def add_pipeline_arguments(p: argparse.ArgumentParser, defaults: PipelineSetting
         "--episodes", type=positive_int, default=defaults.episodes, help="evaluation episodes per food and model"
     )
     p.add_argument(
-        "--processes", type=positive_int, default=defaults.processes, help="parallel recording and evaluation processes"
+        "--processes",
+        type=positive_int,
+        default=defaults.processes,
+        help="parallel recording and evaluation processes (with --ray, the least number of pieces in flight)",
     )
     p.add_argument("--horizon", type=positive_int, default=defaults.horizon, help="longest episode, control steps")
     p.add_argument("--n-grains", type=positive_int, default=None, help="grains in the bowl (default: each food's own)")
@@ -89,13 +103,29 @@ def settings_from_args(args: argparse.Namespace) -> PipelineSettings:
         epochs=args.epochs,
         steps_per_epoch=args.steps_per_epoch,
         eval_steps=args.eval_steps,
+        algo_epochs=algo_epochs(args.algo_epochs),
         episodes=args.episodes,
         processes=args.processes,
         horizon=args.horizon,
         n_grains=args.n_grains,
         seed=args.seed,
         agents=agent_columns(getattr(args, "agent", None), defaults=args.default_agents),
+        ray=getattr(args, "ray", None),
     )
+
+
+def algo_epochs(texts: list[str] | None) -> dict[str, int]:
+    """``--algo-epochs`` values as algorithm -> epochs; ValueError naming the accepted form and algorithms."""
+    epochs: dict[str, int] = {}
+    for text in texts or []:
+        algo, sep, value = text.partition("=")
+        if not sep or algo not in ALGO_CONFIGS:
+            raise ValueError(f"--algo-epochs takes ALGO=EPOCHS with ALGO one of {sorted(ALGO_CONFIGS)}, got {text!r}")
+        try:
+            epochs[algo] = positive_int(value)
+        except argparse.ArgumentTypeError as error:
+            raise ValueError(f"--algo-epochs {text!r}: EPOCHS {error}") from None
+    return epochs
 
 
 def agent_columns(texts: list[str] | None, defaults: dict[str, str]) -> dict[str, str]:
@@ -114,6 +144,7 @@ def agent_columns(texts: list[str] | None, defaults: dict[str, str]) -> dict[str
 def run(parser: argparse.ArgumentParser, argv: list[str] | None) -> int:
     """Parses, runs the pipeline and prints the tables; bad values exit 2 with the accepted ones named."""
     args = parser.parse_args(argv)
+    check_ray_argument(parser, args)
     try:
         settings = settings_from_args(args)
     except ValueError as error:
@@ -143,6 +174,7 @@ def main(argv: list[str] | None = None) -> int:
         eval_foods=list(TRAINING_FOODS + UNSEEN_FOODS),
     )
     add_pipeline_arguments(parser, defaults)
+    add_ray_argument(parser, "the recording attempts, training runs and evaluation episodes")
     return run(parser, argv)
 
 

@@ -3,6 +3,11 @@
 
 export const SCHEMA_VERSION = 1;
 const FRAME_HEADER_BYTES = 20; // "<2sBBIdHH": magic "VF", version, panels, frame id, sim time, width, height
+// version 2: a u16 byte count and a timing block ("<IIq8d": step, flags, pose seq, eight monotonic times of the
+// simulator's machine) come before the JPEG; skipped by its count, so fields appended later change nothing here
+const FRAME_VERSION_TIMED = 2;
+const TIMING_BYTES = 80;
+const TIMES = ["poseReceived", "action", "captured", "renderStart", "rendered", "encoded", "published", "sent"];
 const CLOSE_UNAUTHORIZED = 4401;
 const CLOSE_SUPERSEDED = 4000;
 const CLOSE_FINISHED = 4100; // the program is done with the headset: nothing to reconnect to
@@ -13,15 +18,33 @@ export function parseFrame(buffer) {
   if (buffer.byteLength < FRAME_HEADER_BYTES || view.getUint8(0) !== 0x56 || view.getUint8(1) !== 0x46) {
     throw new Error("not a camera frame");
   }
-  return {
+  const frame = {
     version: view.getUint8(2),
     panels: view.getUint8(3),
     frameId: view.getUint32(4, true),
     simTime: view.getFloat64(8, true),
     width: view.getUint16(16, true),
     height: view.getUint16(18, true),
-    jpeg: new Uint8Array(buffer, FRAME_HEADER_BYTES),
   };
+  let start = FRAME_HEADER_BYTES;
+  if (frame.version >= FRAME_VERSION_TIMED) {
+    if (buffer.byteLength < start + 2) throw new Error("frame shorter than its timing block");
+    const n = view.getUint16(start, true);
+    start += 2;
+    if (n < TIMING_BYTES || buffer.byteLength < start + n) throw new Error("frame shorter than its timing block");
+    const step = view.getUint32(start, true);
+    frame.timing = {
+      step: step === 0xffffffff ? null : step,
+      midStep: (view.getUint32(start + 4, true) & 1) !== 0,
+      poseSeq: Number(view.getBigInt64(start + 8, true)),
+    };
+    TIMES.forEach((name, i) => {
+      frame.timing[name] = view.getFloat64(start + 16 + 8 * i, true);
+    });
+    start += n;
+  }
+  frame.jpeg = new Uint8Array(buffer, start);
+  return frame;
 }
 
 export class Link extends EventTarget {

@@ -21,7 +21,10 @@ const stats = {
   xrFrames: 0,
   posesSent: 0,
   statusReceived: 0,
-  lastFrame: null,
+  lastFrame: null, // the newest frame's header (its timing block in the simulator's clock, see link.js)
+  // this page's part of the latency, mean ms: frame received -> decoded (waiting behind a decode included) and,
+  // in VR, decoded -> uploaded by the next XR frame; what the simulator's side costs is in lastFrame.timing
+  latency: { decoded: 0, receivedToDecodedMs: 0, drawn: 0, decodedToDrawnMs: 0 },
   lastStatus: null,
   finalText: null, // the program's last word when the session is over ("N demos saved to FILE")
   finished: false,
@@ -46,8 +49,15 @@ const link = new Link((location.protocol === "https:" ? "wss://" : "ws://") + lo
 // ---------------------------------------------------------------- camera frames: decode the newest only
 let bitmap = null;
 let bitmapVersion = 0;
+let bitmapDecodedAt = 0;
 let decoding = false;
 let pending = null;
+
+function addMean(name, count, ms) {
+  const l = stats.latency;
+  l[count]++;
+  l[name] += (ms - l[name]) / l[count];
+}
 
 async function decode(frame) {
   decoding = true;
@@ -56,6 +66,8 @@ async function decode(frame) {
     if (bitmap) bitmap.close();
     bitmap = next;
     bitmapVersion++;
+    bitmapDecodedAt = performance.now();
+    addMean("receivedToDecodedMs", "decoded", bitmapDecodedAt - frame.receivedAt);
     stats.framesDecoded++;
     if (!stats.inXR) drawPreview();
   } catch (e) {
@@ -78,7 +90,8 @@ function drawPreview() {
 }
 
 link.addEventListener("frame", (event) => {
-  const { jpeg, ...header } = event.detail;
+  event.detail.receivedAt = performance.now();
+  const { jpeg, receivedAt, ...header } = event.detail;
   stats.framesReceived++;
   stats.lastFrame = header;
   if (decoding) {
@@ -208,6 +221,7 @@ async function enterVR() {
     }
     if (bitmap && uploadedBitmap !== bitmapVersion) {
       renderer.upload(panelTexture, bitmap);
+      addMean("decodedToDrawnMs", "drawn", performance.now() - bitmapDecodedAt);
       uploadedBitmap = bitmapVersion;
       aspect = bitmap.width / bitmap.height;
     }
