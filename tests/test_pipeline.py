@@ -82,6 +82,11 @@ def test_an_algorithm_with_its_own_budget_is_evaluated_at_its_end_and_at_the_swe
     curve = PipelineSettings(**grid, algo_epochs={"bc_rnn": 40}, eval_steps=[10000, 50000])
     assert curve.steps_of("bc") == [10000, 50000] and curve.steps_of("bc_rnn") == [10000, 20000]
     assert PipelineSettings(**grid).own_agents() == ["expert operator", "expert BC", "expert BC-RNN", "expert BCQ"]
+    longer = PipelineSettings(**grid, algo_epochs={"bcq": 200})  # more than epochs: its own end only
+    assert longer.steps_of("bcq") == [100000] and longer.steps_of("bc") == [50000]
+    assert longer.own_agents() == [
+        "expert operator", "expert BC 50k steps", "expert BC-RNN 50k steps", "expert BCQ 100k steps"
+    ]  # fmt: skip
     with pytest.raises(ValueError, match=r"algo_epochs names unknown algorithm\(s\) \['gail'\]; accepted"):
         PipelineSettings(**grid, algo_epochs={"gail": 3})
     with pytest.raises(ValueError, match=r"eval_steps \[60000\] .* up to .* \(50000\)"):

@@ -285,7 +285,6 @@ SERVER_CHILD = """
 import json, resource, sys
 resource.setrlimit(resource.RLIMIT_NOFILE, (1024, 1024))
 from veragmil_suite.devices.vr_server import VRServer, VRServerOptions
-
 server = VRServer(VRServerOptions(port=0, request_timeout=1.0, heartbeat_timeout=1.0)).start()
 print(server.port, flush=True)
 sys.stdin.readline()

@@ -66,8 +66,8 @@ class PipelineSettings:
     own model on the first N demos of each food, and each model is evaluated at every step count of
     ``eval_steps`` (gradient steps, multiples of ``steps_per_epoch``; by default only at the end of training).
     ``algo_epochs`` (algorithm -> epochs) gives an algorithm its own budget instead of ``epochs``: BC-RNN costs 7x
-    BC's time per gradient step. Each algorithm is evaluated at the ``eval_steps`` its training reaches, and one
-    with its own budget at its end too.
+    BC's time per gradient step. Each algorithm is evaluated at the end of its own training, and at the listed
+    ``eval_steps`` its training reaches.
     ``agents`` (name -> agent SPEC of veragmil_suite.evaluation) are evaluated beside the run's own, on the same
     bowls: a pretrained checkpoint, another operator profile, a recorded dataset.
     """
@@ -116,14 +116,14 @@ class PipelineSettings:
             if int(epochs) < 1:
                 raise ValueError(f"algo_epochs of {algo} must be a positive integer, got {epochs!r}")
         total = max(self.total_steps_of(algo) for algo in self.algos)
-        steps = sorted(set(int(k) for k in (self.eval_steps or [self.total_steps])))
+        steps = sorted(set(int(k) for k in (self.eval_steps or [])))
         bad = [k for k in steps if k < 1 or k > total or k % self.steps_per_epoch]
         if bad:
             raise ValueError(
                 f"eval_steps {bad} are not checkpoints of this training: multiples of steps_per_epoch "
                 f"({self.steps_per_epoch}) up to epochs x steps_per_epoch ({total})"
             )
-        self.eval_steps = steps
+        self.eval_steps = steps or None
         from veragmil_suite.evaluation import parse_spec
 
         own = set(self.own_agents())
@@ -147,6 +147,8 @@ class PipelineSettings:
     def steps_of(self, algo: str) -> list[int]:
         """The gradient steps at which ``algo``'s checkpoints are evaluated."""
         total = self.total_steps_of(algo)
+        if self.eval_steps is None:
+            return [total]
         own_end = {total} if algo in self.algo_epochs else set()
         return sorted({k for k in self.eval_steps if k <= total} | own_end)
 
