@@ -162,6 +162,9 @@ class ScoopPlan:
 
 
 SCOOP_PLAN = ScoopPlan()
+# A humanoid levels the spoon by forearm roll (veragmil_suite.humanoid), which swings the spoon's bowl forward through
+# the pile: its level waypoint stays twice as many piece radii short, or a long pasta piece goes over the far rim
+HUMANOID_SCOOP_PLAN = replace(SCOOP_PLAN, level_dx_per_radius=2 * SCOOP_PLAN.level_dx_per_radius)
 
 
 def get_profile(profile: str | OperatorProfile) -> OperatorProfile:
@@ -205,6 +208,7 @@ class ScriptedScooper:
         kp = np.broadcast_to(np.asarray(self.controller.kp, dtype=float), (6,))
         self.driven = kp > 0
         self.free_heading = not self.driven[5]
+        self.plan = SCOOP_PLAN if env.humanoid is None else HUMANOID_SCOOP_PLAN
         speed = osc_speed_per_offset(
             np.where(self.driven, kp, 1.0), np.where(self.driven, self.controller.kd, 1.0), self.dt
         )
@@ -320,7 +324,7 @@ class ScriptedScooper:
         floor_z = rim[2] - shape.depth
         floor_r = min(shape.floor_semi_axes)
         rim_r = min(shape.rim_semi_axes)
-        plan, j = SCOOP_PLAN, self.jitter
+        plan, j = self.plan, self.jitter
         y = rim[1] + j["y"]
         if name == "approach":
             return np.array([rim[0] - 0.5 * rim_r, y, rim[2] + plan.approach_dz]), PRE_SCOOP_EEF_ROT
