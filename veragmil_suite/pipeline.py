@@ -134,10 +134,6 @@ class PipelineSettings:
                     f"agent name {name!r} is taken by one of this run's own; name it otherwise (NAME=SPEC)"
                 )
 
-    @property
-    def total_steps(self) -> int:
-        return self.epochs * self.steps_per_epoch
-
     def epochs_of(self, algo: str) -> int:
         return int(self.algo_epochs.get(algo, self.epochs))
 
