@@ -3,12 +3,15 @@ its right hand and its left arm and torso held still, its action is the spoon ar
 scoops with it, and recording, training and evaluation run on its data through the same commands; without
 robosuite-models its names get one clear error."""
 
+import json
+
 import numpy as np
 import pytest
 import robosuite
 
 from veragmil_suite import humanoid
 from veragmil_suite.controllers import load_scoop_controller_config
+from veragmil_suite.pipeline import PipelineSettings
 from veragmil_suite.scripts.measure_expert import run_expert_episode
 
 LIGHT = dict(food="pasta", n_grains=12, pile_variants=1)
@@ -79,7 +82,7 @@ def test_expert_scoops_pasta_with_the_g1():
 
 def test_recording_training_and_evaluation_run_on_g1_data(tmp_path):
     from veragmil_suite.evaluation import evaluate
-    from veragmil_suite.pipeline import train_checkpoint, training_config
+    from veragmil_suite.pipeline import StageError, record_food, train_checkpoint, training_config
     from veragmil_suite.recording import open_dataset
     from veragmil_suite.scripts import collect_human_demonstrations as collect
 
@@ -92,15 +95,27 @@ def test_recording_training_and_evaluation_run_on_g1_data(tmp_path):
         assert demo["actions"].shape[1] == 6
         assert demo["obs/robot0_eef_pos"].shape[1] == 3
 
+    # a study's recording of another robot does not append to it
+    with pytest.raises(StageError, match=r"robot 'G1FixedLowerBody' \(asked: 'XArm7'\)"):
+        record_food(data, "pasta", 2, n_grains=20, robot="XArm7")
+
     config = training_config("bc", data, tmp_path / "runs", "g1_bc", epochs=1, steps_per_epoch=3)
     config["train"]["batch_size"] = 16
     checkpoints, _ = train_checkpoint(config, tmp_path)
     horizon = 8
+    # the operator scoops with the checkpoint's robot, unasked
+    agents = {"BC": str(checkpoints[1]), "operator": "expert:expert"}
+    out = tmp_path / "eval"
     result = evaluate(
-        {"BC": str(checkpoints[1])}, foods=["pasta"], episodes=1, processes=1, horizon=horizon, progress=False
+        agents, foods=["pasta"], episodes=1, processes=1, horizon=horizon, progress=False, output_dir=str(out)
     )
-    (episode,) = result.episodes
-    assert episode.steps == horizon and episode.physics_error == ""
+    assert result.config["robot"] == "G1FixedLowerBody"
+    assert [e.steps for e in result.episodes] == [horizon, horizon]
+    assert all(e.physics_error == "" for e in result.episodes)
+    journaled = [json.loads(line) for line in (out / "episodes.jsonl").read_text().splitlines()]
+    assert all("G1FixedLowerBody" in json.dumps(entry) for entry in journaled)
+    with pytest.raises(ValueError, match=r"one robot, XArm7, but .* BC \(G1FixedLowerBody\)"):
+        evaluate(agents, foods=["pasta"], episodes=1, horizon=horizon, progress=False, robot="XArm7")
 
 
 def test_g1_names_need_robosuite_models_and_a_fixed_base(monkeypatch):
@@ -110,6 +125,8 @@ def test_g1_names_need_robosuite_models_and_a_fixed_base(monkeypatch):
         humanoid.check_robot("G1")
     with pytest.raises(ValueError, match="has 2 arms"):
         humanoid.check_robot("Baxter")
+    with pytest.raises(ValueError, match="stands on its own legs"):
+        PipelineSettings("unused", robot="G1FloatingBody")
     with pytest.raises(ValueError, match="robosuite's IK_POSE controller needs a 7-DoF arm"):
         load_scoop_controller_config("IK_POSE", robot="G1FixedLowerBody")
 

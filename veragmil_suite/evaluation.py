@@ -749,9 +749,13 @@ def evaluate(
     resume: bool = False,
     say: Callable[[str], None] | None = None,
     ray: str | None = None,
+    robot: str | None = None,
 ) -> EvaluationResult:
     """
     Scores each agent (name -> SPEC, see parse_spec) for ``episodes`` episodes per food, env seeds ``seed + i``.
+
+    Every agent scoops with one robot: ``robot``, or by default the one the checkpoints were trained with
+    (EXPERT_ROBOT when there are none); the scripted operators run on it.
 
     ``env_kwargs`` go to every environment (e.g. n_grains for a cheap scene); ``videos`` first episodes per
     (agent, food) are saved as mp4 under ``output_dir``/videos. Writes the outputs when ``output_dir`` is given,
@@ -764,7 +768,8 @@ def evaluate(
     the outputs are written here as episodes end.
 
     Raises:
-        ValueError: [unknown food, bad agent SPEC, non-positive sizes, videos without output_dir]
+        ValueError: [unknown food, bad agent SPEC, non-positive sizes, videos without output_dir, checkpoints of
+            another robot]
         EvaluationError: [an episode failed in a worker (its traceback in the message)]
     """
     foods = check_foods(list(foods))
@@ -777,6 +782,9 @@ def evaluate(
         raise ValueError(f"horizon must be a positive integer, got {horizon}")
     if videos and output_dir is None:
         raise ValueError("videos need an output_dir to be written to")
+    robot = _evaluated_robot(specs, robot)
+    if robot != EXPERT_ROBOT:
+        env_kwargs = {**(env_kwargs or {}), "robots": robot}
     video_dir = Path(output_dir) / "videos" if output_dir is not None else None
     records: list[EpisodeRecord] = []
     tasks = []
@@ -817,6 +825,7 @@ def evaluate(
         videos=int(videos),
         video_camera=video_camera,
         env_kwargs=dict(env_kwargs or {}),
+        robot=robot,
         success_hold_s=SUCCESS_HOLD_S,
         episodes_run=episodes_run,
         versions=_versions(),
@@ -825,6 +834,29 @@ def evaluate(
     if output_dir is not None:
         result.write(output_dir)
     return result
+
+
+def _evaluated_robot(specs: dict, robot: str | None) -> str:
+    """The one robot of an evaluation: ``robot`` or the checkpoints'; a ValueError when a checkpoint's differs."""
+    trained = {}
+    for name, spec in specs.items():
+        if spec.kind == "checkpoint":
+            robots = _env_metadata(spec.target)["env_kwargs"].get("robots", EXPERT_ROBOT)
+            trained[name] = robots[0] if isinstance(robots, (list, tuple)) else robots
+    if robot is None:
+        robot = next(iter(trained.values()), EXPERT_ROBOT)
+    else:
+        from veragmil_suite.humanoid import check_robot
+
+        check_robot(robot)
+    other = {name: r for name, r in trained.items() if r != robot}
+    if other:
+        described = ", ".join(f"{name} ({r})" for name, r in other.items())
+        raise ValueError(
+            f"every agent scoops with one robot, {robot}, but these checkpoints were trained with another: "
+            f"{described}; evaluate them with --robot set to their robot, in a run of their own"
+        )
+    return robot
 
 
 JOURNAL_NAME = "episodes.jsonl"

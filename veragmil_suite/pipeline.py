@@ -87,6 +87,7 @@ class PipelineSettings:
     seed: int = 0
     horizon: int = 400
     n_grains: int | None = None
+    robot: str = "XArm7"  # records, trains and evaluates with this robot (veragmil_suite.humanoid: the G1)
     score_demonstrators: bool = True
     agents: dict[str, str] = field(default_factory=dict)
     ray: str | None = None  # None: local processes; else a Ray cluster's address (distributed.THIS_MACHINE: here)
@@ -94,6 +95,9 @@ class PipelineSettings:
     def __post_init__(self):
         for food in [*self.train_foods, *self.eval_foods]:
             get_food(food)  # a ValueError naming the accepted foods
+        from veragmil_suite.humanoid import check_robot
+
+        check_robot(self.robot)
         unknown = sorted(set(self.algos) - set(ALGO_CONFIGS))
         if unknown:
             raise ValueError(f"unknown algorithm(s) {unknown}; accepted: {sorted(ALGO_CONFIGS)}")
@@ -225,6 +229,7 @@ def _recorded(path: Path) -> dict:
             food=kwargs.get("food"),
             n_grains=kwargs.get("n_grains"),
             horizon=kwargs.get("horizon"),
+            robot=kwargs.get("robots"),
             cameras=kwargs.get("camera_names") if kwargs.get("use_camera_obs") else [],
             profile=str(first.get("profile", "")),
             seed=int(first["env_seed"]) if "env_seed" in first else None,
@@ -242,6 +247,7 @@ def record_food(
     cameras: tuple[str, ...] = (),
     workers: int = 1,
     ray: str | None = None,
+    robot: str = "XArm7",
 ) -> float | None:
     """
     Records ``demos`` successful scripted demos of ``food`` into ``path`` (attempt seeds from ``seed``, in
@@ -255,7 +261,15 @@ def record_food(
     path = Path(path)
     if path.exists():
         held = _recorded(path)
-        wanted = dict(food=food, n_grains=n_grains, horizon=horizon, cameras=list(cameras), profile=profile, seed=seed)
+        wanted = dict(
+            food=food,
+            n_grains=n_grains,
+            horizon=horizon,
+            cameras=list(cameras),
+            profile=profile,
+            seed=seed,
+            robot=robot,
+        )
         differ = {k: (held[k], v) for k, v in wanted.items() if held[k] != v and held["demos"]}
         if differ:
             described = ", ".join(f"{k} {a!r} (asked: {b!r})" for k, (a, b) in differ.items())
@@ -271,7 +285,7 @@ def record_food(
         *_console("veragmil-collect"),
         *("--device", "scripted", "--profile", profile, "--food", food),
         *("--episodes", str(demos), "--output", str(path), "--seed", str(seed), "--workers", str(workers)),
-        *("--horizon", str(horizon), "--quiet", "--cameras", *cameras),
+        *("--horizon", str(horizon), "--robot", robot, "--quiet", "--cameras", *cameras),
     ]
     if n_grains is not None:
         command += ["--n-grains", str(n_grains)]
@@ -333,6 +347,7 @@ def record_scripted_dataset(
     workers: int = 1,
     say=print,
     ray: str | None = None,
+    robot: str = "XArm7",
 ) -> float:
     """Records (or finds complete) max(``demo_counts``) scripted demos of each food, one file per food beside
     ``path``, and merges them into ``path`` with a mask per demo count; returns the seconds spent recording."""
@@ -343,7 +358,17 @@ def record_scripted_dataset(
     for food in foods:
         file = folder / f"{food}.hdf5"
         seconds = record_food(
-            file, food, max(demo_counts), profile, food_seed(seed, food), horizon, n_grains, cameras, workers, ray
+            file,
+            food,
+            max(demo_counts),
+            profile,
+            food_seed(seed, food),
+            horizon,
+            n_grains,
+            cameras,
+            workers,
+            ray,
+            robot,
         )
         if seconds is None:
             say(f"skipping recording {profile} {food}: {file} holds its {max(demo_counts)} demos")
@@ -537,6 +562,7 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True):
                 workers=settings.processes,
                 say=say,
                 ray=address,
+                robot=settings.robot,
             )
             note(f"record {profile}", seconds or None)
             for algo in settings.algos:
@@ -586,6 +612,7 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True):
             resume=True,
             say=say,
             ray=address,
+            robot=settings.robot,
             **kwargs,
         )
     if result.config["episodes_run"]:  # a fully journaled evaluation keeps the time of the run that did it

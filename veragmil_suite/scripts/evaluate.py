@@ -74,6 +74,11 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="JSON of robosuite.make keyword arguments for every env, e.g. '{\"n_grains\": 12}'",
     )
+    p.add_argument(
+        "--robot",
+        default=None,
+        help="the robot every agent scoops with (default: the checkpoints', else XArm7; G1FixedLowerBody: the G1)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_ray_argument(p, "the episodes")
     return p
@@ -95,7 +100,17 @@ def main(argv: list[str] | None = None) -> int:
             agents[name] = spec
     except ValueError as e:
         parser.error(str(e))
-    result = evaluate(
+    try:
+        result = _evaluate(agents, args)
+    except ValueError as e:
+        parser.error(str(e))
+    print(result.markdown())
+    print(f"written to {args.output_dir}")
+    return 0
+
+
+def _evaluate(agents: dict[str, str], args: argparse.Namespace):
+    return evaluate(
         agents,
         foods=args.foods,
         episodes=args.episodes,
@@ -108,10 +123,8 @@ def main(argv: list[str] | None = None) -> int:
         env_kwargs=args.env_kwargs,
         video_camera=args.video_camera,
         ray=args.ray,
+        robot=args.robot,
     )
-    print(result.markdown())
-    print(f"written to {args.output_dir}")
-    return 0
 
 
 if __name__ == "__main__":

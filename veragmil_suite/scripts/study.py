@@ -82,6 +82,12 @@ def add_pipeline_arguments(p: argparse.ArgumentParser, defaults: PipelineSetting
     p.add_argument("--n-grains", type=positive_int, default=None, help="grains in the bowl (default: each food's own)")
     p.add_argument("--seed", type=int, default=defaults.seed)
     p.add_argument(
+        "--robot",
+        default=defaults.robot,
+        help="the robot that records, and that the models and operators scoop with (G1FixedLowerBody: the G1, "
+        "with the humanoid extra)",
+    )
+    p.add_argument(
         "--agent",
         action="append",
         metavar="[NAME=]SPEC",
@@ -108,6 +114,7 @@ def settings_from_args(args: argparse.Namespace) -> PipelineSettings:
         processes=args.processes,
         horizon=args.horizon,
         n_grains=args.n_grains,
+        robot=args.robot,
         seed=args.seed,
         agents=agent_columns(getattr(args, "agent", None), defaults=args.default_agents),
         ray=getattr(args, "ray", None),
