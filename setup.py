@@ -5,8 +5,8 @@ import os
 from setuptools import find_packages, setup
 
 # Recorded demonstrations replay bit-exactly only on the MuJoCo that recorded them, and robosuite 1.5.2
-# breaks with mujoco >= 3.12: one exact version is pinned.
-MUJOCO_VERSION = "3.3.7"
+# breaks with mujoco >= 3.12: one exact version is pinned, 3.8.x for its island sleeping (resting grains cost nothing).
+MUJOCO_VERSION = "3.8.1"
 # the Ray the tests ran with: one version on the driver and every node of a cluster (Ray's own requirement)
 RAY_VERSION = "2.60.0"
 

@@ -20,7 +20,7 @@ from veragmil_suite.models.arena import ScoopArena
 from veragmil_suite.models.bowl import DEFAULT_BOWL_SHAPE, Bowl
 from veragmil_suite.models.dish import DishShape
 from veragmil_suite.models.grains import GrainPile
-from veragmil_suite.models.scoop_task import PHYSICS_TIMESTEP_S, PILE_SOLVER_OPTIONS, ScoopTask
+from veragmil_suite.models.scoop_task import GRAIN_SLEEP_TOLERANCE, PHYSICS_TIMESTEP_S, PILE_SOLVER_OPTIONS, ScoopTask
 from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
 from veragmil_suite.settling import SettledPile, pile_key, settle
 
@@ -82,6 +82,8 @@ class ScoopGranular(ManipulationEnv):
         reward_scale (None or float): Scales the normalized reward function by the amount specified
         reward_shaping (bool): if True, use dense rewards
         fast_rendering (bool): no anti-aliasing, shadows or fine tessellation (software rendering is 40x faster)
+        sleep_tolerance (None or float): grains (any body at rest) sleep under this velocity tolerance, MuJoCo's
+            island sleeping (veragmil_suite.models.scoop_task.GRAIN_SLEEP_TOLERANCE); None: nothing sleeps
         physics_solver_options (None or dict): MuJoCo <option> attributes for the pile (default: CG, elliptic)
         (robosuite's usual arguments: has_renderer, has_offscreen_renderer, render_camera, render_collision_mesh,
         render_visual_mesh, render_gpu_device_id, control_freq, lite_physics, horizon, ignore_done, hard_reset,
@@ -121,6 +123,7 @@ class ScoopGranular(ManipulationEnv):
         reward_scale=1.0,
         reward_shaping=False,
         fast_rendering=True,
+        sleep_tolerance=GRAIN_SLEEP_TOLERANCE,
         physics_solver_options=None,
         has_renderer=False,
         has_offscreen_renderer=True,
@@ -182,6 +185,12 @@ class ScoopGranular(ManipulationEnv):
         self.min_portion_cm3 = min_portion_cm3
         self.max_spill_fraction = max_spill_fraction
         self.fast_rendering = fast_rendering
+        if sleep_tolerance is not None and not (isinstance(sleep_tolerance, (int, float)) and sleep_tolerance > 0):
+            raise ValueError(
+                f"sleep_tolerance must be a positive number (MuJoCo's, e.g. {GRAIN_SLEEP_TOLERANCE}) or None "
+                f"(nothing sleeps), got {sleep_tolerance!r}"
+            )
+        self.sleep_tolerance = sleep_tolerance
         self.physics_solver_options = physics_solver_options
 
         # settings for table top: the bowl sits in the middle of the table
@@ -339,6 +348,7 @@ class ScoopGranular(ManipulationEnv):
             grain_home_qpos=self.grain_pile.lattice_qpos(self.bowl_shape, self._nominal_rim_center()),
             solver_options=self.solver_options,
             fast_rendering=self.fast_rendering,
+            sleep_tolerance=self.sleep_tolerance,
         )
         if self.humanoid is not None:
             for body1, body2 in self_contact_excludes(robot_model.worldbody):

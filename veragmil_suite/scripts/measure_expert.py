@@ -6,11 +6,13 @@ Episode s is a fresh environment made with seed s, so its bowl is not that of ve
 
     python -m veragmil_suite.scripts.measure_expert --foods rice buckwheat barley pasta --episodes 10 --workers 2
     python -m veragmil_suite.scripts.measure_expert --robot G1FixedLowerBody --episodes 10 --workers 1
+    python -m veragmil_suite.scripts.measure_expert --sleep-tolerance none --json before.json
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.metadata
 import json
 import os
 import sys
@@ -70,11 +72,25 @@ def run_expert_episode(
     return out
 
 
-def _episode_piece(context: tuple[str, str], piece: tuple[str, int]) -> dict:
-    """run_expert_episode as a piece of veragmil_suite.distributed: (food, seed) of context's (profile, robot)."""
-    profile, robot = context
+def _episode_piece(context: tuple[str, str, dict], piece: tuple[str, int]) -> dict:
+    """run_expert_episode as a piece of veragmil_suite.distributed: (food, seed) of context's (profile, robot,
+    env_kwargs)."""
+    profile, robot, env_kwargs = context
     food, seed = piece
-    return run_expert_episode(food, seed, profile, robot=robot)
+    return run_expert_episode(food, seed, profile, env_kwargs=env_kwargs, robot=robot)
+
+
+def _sleep_tolerance(text: str) -> float | None:
+    """argparse type of --sleep-tolerance: 'none' or a positive float."""
+    if text.lower() == "none":
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: accepted values are 'none' or a positive number (e.g. 1e-3)")
+    return value
 
 
 def summarize(results: list[dict]) -> dict:
@@ -99,6 +115,7 @@ def summarize(results: list[dict]) -> dict:
 def main(argv: list[str] | None = None) -> int:
     from veragmil_suite.expert import PROFILES
     from veragmil_suite.foods import TRAINING_FOODS
+    from veragmil_suite.models.scoop_task import GRAIN_SLEEP_TOLERANCE
 
     p = argparse.ArgumentParser(prog="python -m veragmil_suite.scripts.measure_expert", description=__doc__)
     p.add_argument("--foods", nargs="+", default=list(TRAINING_FOODS))
@@ -107,13 +124,21 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--profile", choices=sorted(PROFILES), default="expert")
     p.add_argument("--robot", default="XArm7", help="robosuite robot (G1FixedLowerBody: see veragmil_suite.humanoid)")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    p.add_argument(
+        "--sleep-tolerance",
+        type=_sleep_tolerance,
+        default=GRAIN_SLEEP_TOLERANCE,
+        help=f"MuJoCo's sleep_tolerance for the grains, or 'none': sleeping off (default {GRAIN_SLEEP_TOLERANCE})",
+    )
     p.add_argument("--json", default=None, help="also write every episode and the summary to this file")
     args = p.parse_args(argv)
     from veragmil_suite.distributed import run_pieces
 
     jobs = [(f, s) for s in range(args.first_seed, args.first_seed + args.episodes) for f in args.foods]
     results = []
-    pieces = run_pieces(_episode_piece, jobs, context=(args.profile, args.robot), processes=args.workers, ordered=True)
+    env_kwargs = dict(sleep_tolerance=args.sleep_tolerance)
+    context = (args.profile, args.robot, env_kwargs)
+    pieces = run_pieces(_episode_piece, jobs, context=context, processes=args.workers, ordered=True)
     for _, r in pieces:
         results.append(r)
         print(
@@ -124,7 +149,7 @@ def main(argv: list[str] | None = None) -> int:
             flush=True,
         )
     summary = summarize(results)
-    print(f"\n{args.robot}, profile {args.profile}, {args.episodes} episodes per food")
+    print(f"\n{args.robot}, profile {args.profile}, {args.episodes} episodes per food, sleep {args.sleep_tolerance}")
     print("food        success  spilled(pieces)  spilled(cm3)  spill%  in spoon  time(s)")
     for food, s in summary.items():
         t = "n/a" if s["mean_completion_time_s"] is None else f"{s['mean_completion_time_s']:.2f}"
@@ -135,7 +160,18 @@ def main(argv: list[str] | None = None) -> int:
         )
     if args.json:
         with open(args.json, "w") as f:
-            json.dump(dict(robot=args.robot, profile=args.profile, episodes=results, summary=summary), f, indent=2)
+            json.dump(
+                dict(
+                    robot=args.robot,
+                    profile=args.profile,
+                    sleep_tolerance=args.sleep_tolerance,
+                    mujoco=importlib.metadata.version("mujoco"),
+                    episodes=results,
+                    summary=summary,
+                ),
+                f,
+                indent=2,
+            )
     return 0
 
 
