@@ -106,7 +106,7 @@ def expert_episodes(food: str, robot: str, sleep_tolerance: float | None, episod
         before = {name: data.timer[t].duration for name, t in timers.items()}
         start = time.perf_counter()
         end = run_until_done(
-            lambda o: None if expert.done else expert.executed(expert.act(o)),
+            expert.agent,
             env.step,
             obs,
             env.control_freq,

@@ -233,7 +233,7 @@ def _expert_env(task: EpisodeTask):
     expert = ScriptedScooper(env, task.spec.target, seed=task.seed)
     obs = env.reset()
     expert.reset()
-    return env, obs, lambda o: None if expert.done else expert.executed(expert.act(o)), env.step
+    return env, obs, expert.agent, env.step
 
 
 def _policy(path: str):

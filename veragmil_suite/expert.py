@@ -306,6 +306,11 @@ class ScriptedScooper:
         self.injected = a * self.injected + np.sqrt(1 - a**2) * p.injected_noise * self.rng.standard_normal(6)
         return np.clip(action + self.injected, -1.0, 1.0)
 
+    def agent(self, obs: dict) -> np.ndarray | None:
+        """The operator as an unrecorded agent of veragmil_suite.episode.run_until_done: the action it executes,
+        or None once the scoop is done."""
+        return None if self.done else self.executed(self.act(obs))
+
     # -------------------------------------------------------------------------------------------------------- #
 
     def _rotation_error(self, target_rot: np.ndarray, eef_rot: np.ndarray) -> np.ndarray:

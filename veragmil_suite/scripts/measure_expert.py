@@ -50,7 +50,7 @@ def run_expert_episode(
     start = time.perf_counter()
     obs = recorder.reset()
     end = run_until_done(
-        lambda o: None if expert.done else expert.executed(expert.act(o)),
+        expert.agent,
         recorder.step,
         obs,
         env.control_freq,
