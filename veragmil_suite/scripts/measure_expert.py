@@ -106,6 +106,7 @@ def summarize(results: list[dict]) -> dict:
             mean_spilled_cm3=float(np.mean([r["spilled_volume_cm3"] for r in rows])),
             mean_spill_fraction=float(np.mean([r["spill_fraction"] for r in rows])),
             mean_grains_in_spoon=float(np.mean([r["grains_in_spoon"] for r in rows])),
+            std_grains_in_spoon=float(np.std([r["grains_in_spoon"] for r in rows])),
             mean_completion_time_s=float(np.mean([r["completion_time_s"] for r in ok])) if ok else None,
             failures={r["seed"]: r["end_reason"] for r in rows if not r["success"]},
         )
@@ -150,13 +151,14 @@ def main(argv: list[str] | None = None) -> int:
         )
     summary = summarize(results)
     print(f"\n{args.robot}, profile {args.profile}, {args.episodes} episodes per food, sleep {args.sleep_tolerance}")
-    print("food        success  spilled(pieces)  spilled(cm3)  spill%  in spoon  time(s)")
+    print("food        success  spilled(pieces)  spilled(cm3)  spill%      in spoon  time(s)")
     for food, s in summary.items():
         t = "n/a" if s["mean_completion_time_s"] is None else f"{s['mean_completion_time_s']:.2f}"
         print(
             f"{food:<10} {100 * s['success_rate']:>6.0f}%  {s['mean_grains_spilled']:>15.2f}"
             f"  {s['mean_spilled_cm3']:>12.3f}"
-            f"  {100 * s['mean_spill_fraction']:>5.1f}  {s['mean_grains_in_spoon']:>8.1f}  {t:>7}"
+            f"  {100 * s['mean_spill_fraction']:>5.1f}"
+            f"  {s['mean_grains_in_spoon']:>6.1f} +-{s['std_grains_in_spoon']:>4.1f}  {t:>7}"
         )
     if args.json:
         with open(args.json, "w") as f:
