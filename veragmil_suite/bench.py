@@ -3,6 +3,7 @@
     python -m veragmil_suite.bench                    # every food, 1x/2x/4x its default grain count
     python -m veragmil_suite.bench --foods rice --scales 1 --steps 40 --episodes 2
     python -m veragmil_suite.bench --robot XArm7,G1FixedLowerBody --foods rice --scales 1   # robots side by side
+    python -m veragmil_suite.bench --foods rice --scales 1 --sleep-tolerance 3e-3           # another tolerance
 
 Real time at 20 Hz control is 20 env steps/s (RTF 1.0). "bare mj_step" steps the same compiled scene with no
 controller and no robosuite, so env/bare shows what robosuite's Python costs; "vs Lift" compares with robosuite's
@@ -133,7 +134,15 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--robot", default="XArm7", help="comma-separated robots, each benched in turn (G1FixedLowerBody: the G1)"
     )
+    parser.add_argument(
+        "--sleep-tolerance",
+        type=float,
+        default=GRAIN_SLEEP_TOLERANCE,
+        help=f"MuJoCo's sleep_tolerance of the 'asleep' columns (default {GRAIN_SLEEP_TOLERANCE}, the task's)",
+    )
     args = parser.parse_args(argv)
+    if not args.sleep_tolerance > 0:
+        parser.error(f"--sleep-tolerance must be a positive number, got {args.sleep_tolerance}")
     foods = [f.strip() for f in args.foods.split(",") if f.strip()]
     unknown = [f for f in foods if f not in FOODS]
     if unknown:
@@ -152,16 +161,21 @@ def main(argv: list[str] | None = None) -> None:
     for i, robot in enumerate(robots):
         if i:
             print()
-        _bench_robot(robot, foods, scales, args.steps, args.episodes)
+        _bench_robot(robot, foods, scales, args.steps, args.episodes, args.sleep_tolerance)
 
 
-def _bench_robot(robot: str, foods: list[str], scales: list[float], steps: int, episodes: int) -> None:
+def _bench_robot(
+    robot: str, foods: list[str], scales: list[float], steps: int, episodes: int, sleep_tolerance: float
+) -> None:
     """The tables of one robot: robosuite's Lift with it, each food at rest at each scale, whole expert episodes."""
     lift = robosuite.make("Lift", robots=robot, has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False)
     lift_rate = _env_rate(lift, steps)
     lift.close()
     print(f"robosuite Lift ({robot}): {lift_rate:7.1f} steps/s  RTF {lift_rate / REAL_TIME_STEPS_PER_S:5.2f}")
-    print("\nAt rest (steps/s awake: sleeping off; asleep: on, after the pile fell asleep)")
+    print(
+        f"\nAt rest (steps/s awake: sleeping off; asleep: sleep_tolerance {sleep_tolerance:g}, "
+        "after the pile fell asleep)"
+    )
     columns = ("grains", "awake", "asleep", "gain", "RTF", "vs Lift", "bare mj", "env/bare", "contacts")
     header = f"{'food':<10}" + "".join(f" {c:>8}" for c in columns)
     print(header)
@@ -175,7 +189,7 @@ def _bench_robot(robot: str, foods: list[str], scales: list[float], steps: int, 
             contacts = env.sim.data.ncon
             bare = _bare_rate(env, steps)
             env.close()
-            env = make_env(food, n, robot, sleep_tolerance=GRAIN_SLEEP_TOLERANCE)
+            env = make_env(food, n, robot, sleep_tolerance=sleep_tolerance)
             asleep = _env_rate(env, steps, warmup=REST_WARMUP_STEPS)
             env.close()
             if food in TRAINING_FOODS and scale == 1:
@@ -203,7 +217,7 @@ def _bench_robot(robot: str, foods: list[str], scales: list[float], steps: int, 
     gains: dict[str, tuple[float, float]] = {}
     for food in foods:
         off = expert_episodes(food, robot, None, episodes)
-        on = expert_episodes(food, robot, GRAIN_SLEEP_TOLERANCE, episodes)
+        on = expert_episodes(food, robot, sleep_tolerance, episodes)
         if food in TRAINING_FOODS:
             gains[food] = (off["rate"], on["rate"])
         shares = ["/".join(f"{100 * r[k]:.0f}" for k in STEP_PARTS) for r in (off, on)]
