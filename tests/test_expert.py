@@ -1,13 +1,15 @@
 """The scripted expert: it succeeds on seen foods, follows the bowl, and its 3D-mouse profile moves one axis at a
 time with coarse input."""
 
+import json
+
 import numpy as np
 import pytest
 from helpers.recording import make_env, tiny_env_kwargs
 
 from veragmil_suite.controllers import load_scoop_controller_config
 from veragmil_suite.expert import DRIFT_CORRECTION_MAX_S, PROFILES, QUANTIZE_FULL_SCALE, ScriptedScooper
-from veragmil_suite.scripts.measure_expert import run_expert_episode
+from veragmil_suite.scripts.measure_expert import compare, run_expert_episode
 
 
 def test_expert_succeeds_on_a_seen_food_over_seeds():
@@ -94,3 +96,21 @@ def test_one_axis_drift_correction_interrupts_a_turn_and_gives_it_back():
     assert axes[:max_steps] == [2] * max_steps
     assert 4 in axes[max_steps:]  # a spoon stalled in the pile turns on
     env.close()
+
+
+def test_measure_expert_compares_runs_seed_by_seed(tmp_path):
+    def episode(food, seed, load, success=True):
+        return dict(
+            food=food, seed=seed, grains_in_spoon=load, success=success, grains_spilled=0, completion_time_s=9.0
+        )
+
+    before = dict(mujoco="3.3.7", sleep_tolerance=None, episodes=[episode("rice", 0, 20), episode("rice", 1, 30)])
+    after = dict(mujoco="3.8.1", sleep_tolerance=3e-3, episodes=[episode("rice", 0, 20), episode("rice", 1, 26, False)])
+    paths = []
+    for name, run in (("before", before), ("after", after)):
+        paths.append(tmp_path / f"{name}.json")
+        paths[-1].write_text(json.dumps(run))
+    table = compare([str(p) for p in paths])
+    assert "| rice | 2/2, 25.0 +- 5.0, 0.0, 9.00 s | 1/2, 23.0 +- 3.0, 0.0, 9.00 s |" in table
+    assert "mujoco 3.3.7, sleep off" in table and "mujoco 3.8.1, sleep 0.003" in table
+    assert "rice -2.0 (same load 1/2)" in table

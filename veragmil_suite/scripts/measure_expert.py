@@ -7,6 +7,7 @@ Episode s is a fresh environment made with seed s, so its bowl is not that of ve
     python -m veragmil_suite.scripts.measure_expert --foods rice buckwheat barley pasta --episodes 10 --workers 2
     python -m veragmil_suite.scripts.measure_expert --robot G1FixedLowerBody --episodes 10 --workers 1
     python -m veragmil_suite.scripts.measure_expert --sleep-tolerance none --json before.json
+    python -m veragmil_suite.scripts.measure_expert --compare before.json after.json
 """
 
 from __future__ import annotations
@@ -113,6 +114,45 @@ def summarize(results: list[dict]) -> dict:
     return out
 
 
+def compare(paths: list[str]) -> str:
+    """A markdown table of several --json runs side by side (per food: successes, load mean +- std, spilled pieces,
+    time of successes), then each run's load against the first's on the seeds both ran (mean difference, how many
+    seeds gave the same load): a paired view, since seed s has the same bowl and pile in every run."""
+    runs = []
+    for path in paths:
+        with open(path) as f:
+            runs.append(json.load(f))
+    label = [f"mujoco {r.get('mujoco', '?')}, sleep {r.get('sleep_tolerance') or 'off'}" for r in runs]
+    lines = ["| food | " + " | ".join(label) + " |", "|---|" + "---|" * len(runs)]
+    foods = list(dict.fromkeys(e["food"] for r in runs for e in r["episodes"]))
+    by_seed = [{(e["food"], e["seed"]): e for e in r["episodes"]} for r in runs]
+    for food in foods:
+        cells = []
+        for r in runs:
+            eps = [e for e in r["episodes"] if e["food"] == food]
+            load = np.array([e["grains_in_spoon"] for e in eps])
+            times = [e["completion_time_s"] for e in eps if e["success"]]
+            cells.append(
+                f"{sum(e['success'] for e in eps)}/{len(eps)}, {load.mean():.1f} +- {load.std():.1f}, "
+                f"{np.mean([e['grains_spilled'] for e in eps]):.1f}, {np.mean(times) if times else float('nan'):.2f} s"
+            )
+        lines.append(f"| {food} | " + " | ".join(cells) + " |")
+    lines.append("\n(cells: successes, grains in the spoon at the end, spilled pieces, seconds to success)\n")
+    for name, seeds in zip(label[1:], by_seed[1:]):
+        parts = []
+        for food in foods:
+            diffs = [
+                seeds[k]["grains_in_spoon"] - e["grains_in_spoon"]
+                for k, e in by_seed[0].items()
+                if k[0] == food and k in seeds
+            ]
+            if diffs:
+                same = sum(d == 0 for d in diffs)
+                parts.append(f"{food} {np.mean(diffs):+.1f} (same load {same}/{len(diffs)})")
+        lines.append(f"- {name} against {label[0]}: " + "; ".join(parts))
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     from veragmil_suite.expert import PROFILES
     from veragmil_suite.foods import TRAINING_FOODS
@@ -132,7 +172,14 @@ def main(argv: list[str] | None = None) -> int:
         help=f"MuJoCo's sleep_tolerance for the grains, or 'none': sleeping off (default {GRAIN_SLEEP_TOLERANCE})",
     )
     p.add_argument("--json", default=None, help="also write every episode and the summary to this file")
+    p.add_argument("--compare", nargs="+", metavar="JSON", help="print earlier --json runs side by side, run nothing")
     args = p.parse_args(argv)
+    if args.compare:
+        missing = [path for path in args.compare if not os.path.isfile(path)]
+        if missing:
+            p.error(f"--compare: no such file {', '.join(missing)} (files written by --json)")
+        print(compare(args.compare))
+        return 0
     from veragmil_suite.distributed import run_pieces
 
     jobs = [(f, s) for s in range(args.first_seed, args.first_seed + args.episodes) for f in args.foods]
