@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import robosuite
 import robosuite.utils.transform_utils as T
-from helpers.env import grain_positions, make_env
+from helpers.env import grain_positions, make_env, pinned_mujoco_version
 
 from veragmil_suite import settling
 from veragmil_suite.controllers import load_scoop_controller_config
@@ -410,7 +410,7 @@ def test_robosuite_make_registered_names():
     from robosuite.models.grippers import GRIPPER_MAPPING
 
     assert "SpoonGripper" in GRIPPER_MAPPING
-    assert mujoco.__version__ == "3.3.7"
+    assert mujoco.__version__ == pinned_mujoco_version()
 
 
 def test_fast_scoop_does_not_tunnel_grains_through_spoon_or_bowl():
