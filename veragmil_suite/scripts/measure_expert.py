@@ -155,11 +155,11 @@ def compare(paths: list[str]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     from veragmil_suite.expert import PROFILES
-    from veragmil_suite.foods import TRAINING_FOODS
+    from veragmil_suite.foods import FOODS, TRAINING_FOODS
     from veragmil_suite.models.scoop_task import GRAIN_SLEEP_TOLERANCE
 
     p = argparse.ArgumentParser(prog="python -m veragmil_suite.scripts.measure_expert", description=__doc__)
-    p.add_argument("--foods", nargs="+", default=list(TRAINING_FOODS))
+    p.add_argument("--foods", nargs="+", choices=list(FOODS), default=list(TRAINING_FOODS), metavar="FOOD")
     p.add_argument("--episodes", type=int, default=10, help="episodes per food (seeds first-seed...)")
     p.add_argument("--first-seed", type=int, default=0)
     p.add_argument("--profile", choices=sorted(PROFILES), default="expert")
