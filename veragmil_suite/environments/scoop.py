@@ -544,10 +544,9 @@ class ScoopGranular(ManipulationEnv):
 
     def _held_joint_qpos(self) -> dict[str, float]:
         """A humanoid's held joint positions by joint name: the other arm's and the torso's (the layout's)."""
-        robot = self.robots[0]
-        model = robot.robot_model
-        split = len(model.arm_joints) // len(robot.arms)
-        joints = {"left": list(model.arm_joints[split:]), "torso": list(model.torso_joints)}
+        model = self.robots[0].robot_model
+        spoon_arm = self._spoon_arm_joints()
+        joints = {"left": list(model.arm_joints[len(spoon_arm) :]), "torso": list(model.torso_joints)}
         return {
             name: float(value)
             for part, values in self.humanoid.held_qpos.items()
