@@ -191,6 +191,8 @@ def test_robomimics_dataset_scripts_work_on_our_files(files, tmp_path):
         cwd=tmp_path,
     )  # fmt: skip
     with h5py.File(dataset) as ours, h5py.File(tmp_path / "extracted.hdf5") as theirs:
+        assert json.loads(theirs["data"].attrs["env_args"])["env_name"] == "ScoopGranular"
+        assert {k: list(theirs["mask"][k]) for k in ours["mask"]} == {k: list(ours["mask"][k]) for k in ours["mask"]}
         for name in ("demo_0", "demo_1"):
             mine, extracted = ours[f"data/{name}"], theirs[f"data/{name}"]
             assert {"robot0_eef_pos", "robot0_joint_pos", "object", "desired_pose", "overhead_image"} <= set(

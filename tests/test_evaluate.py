@@ -233,19 +233,24 @@ def test_cli_expert_and_dataset_in_two_processes_write_every_output(tmp_path):
     assert "episodes:" not in result.stderr  # --quiet: no progress bar
 
 
-def test_bad_food_or_agent_exits_2_naming_the_accepted_values_and_writes_nothing(tmp_path):
+def test_bad_food_or_agent_exits_2_naming_the_accepted_values_and_writes_nothing(tmp_path, capsys):
+    from veragmil_suite.scripts.evaluate import main
+
     out = tmp_path / "eval"
-    result = _run("--agent", "expert", "--foods", "rice", "lentils", "--output-dir", out, timeout=60)
-    assert result.returncode == 2 and "accepted foods: rice, buckwheat" in result.stderr
-    result = _run("--agent", "robot.pkl", "--foods", "rice", "--output-dir", out, timeout=60)
-    assert result.returncode == 2 and "'expert:<profile>'" in result.stderr and "*.pth" in result.stderr
-    result = _run("--agent", "X=expert:sloppy", "--output-dir", out, timeout=60)
-    assert result.returncode == 2 and "accepted profiles" in result.stderr
-    result = _run("--agent", f"dataset:{tmp_path / 'none.hdf5'}", "--output-dir", out, timeout=60)
-    assert result.returncode == 2 and "not found" in result.stderr
+
+    def refused(*args) -> str:
+        with pytest.raises(SystemExit) as exit_:
+            main([*map(str, args), "--output-dir", str(out)])
+        assert exit_.value.code == 2
+        return capsys.readouterr().err
+
+    assert "accepted foods: rice, buckwheat" in refused("--agent", "expert", "--foods", "rice", "lentils")
+    said = refused("--agent", "robot.pkl", "--foods", "rice")
+    assert "'expert:<profile>'" in said and "*.pth" in said
+    assert "accepted profiles" in refused("--agent", "X=expert:sloppy")
+    assert "not found" in refused("--agent", f"dataset:{tmp_path / 'none.hdf5'}")
     (tmp_path / "notes.hdf5").write_text("not HDF5")
-    result = _run("--agent", f"dataset:{tmp_path / 'notes.hdf5'}", "--output-dir", out, timeout=60)
-    assert result.returncode == 2 and "notes.hdf5" in result.stderr
+    assert "notes.hdf5" in refused("--agent", f"dataset:{tmp_path / 'notes.hdf5'}")
     assert not out.exists()
 
 

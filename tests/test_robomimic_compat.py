@@ -1,22 +1,20 @@
 """
-The robomimic 0.3.0 / robosuite 1.5 compatibility layer, gap by gap, and robomimic's dataset scripts through our
-entry points.
+The robomimic 0.3.0 / robosuite 1.5 compatibility layer, gap by gap, and how robomimic's scripts are reached through
+our entry points (tests/test_dataset_tools.py runs those scripts on a recorded file).
 """
 
 import builtins
 import importlib.util
-import json
 import subprocess
 import sys
 import time
 import types
 from pathlib import Path
 
-import h5py
 import mujoco
 import numpy as np
 import pytest
-from helpers.tiny_dataset import SCOOP_KWARGS, default_controller_config, record_tiny_dataset
+from helpers.tiny_dataset import SCOOP_KWARGS, default_controller_config
 
 from veragmil_suite import robomimic_compat
 
@@ -267,59 +265,14 @@ def test_no_prompts_turns_input_into_an_error():
 
 
 # ---------------------------------------------------------------------------------------------------------------- #
-# robomimic's dataset scripts through our entry points                                                               #
+# robomimic's scripts through our entry points                                                                       #
 # ---------------------------------------------------------------------------------------------------------------- #
-
-
-@pytest.fixture(scope="module")
-def dataset(tmp_path_factory):
-    path = tmp_path_factory.mktemp("scripts") / "tiny.hdf5"
-    return Path(record_tiny_dataset(str(path), episodes=2, steps=6, camera_names=("overhead",)))
 
 
 def _run(command, *args):
     return subprocess.run(
         [str(BIN / command), *map(str, args)], capture_output=True, text=True, timeout=300, stdin=subprocess.DEVNULL
     )
-
-
-def test_dataset_info_entry_point(dataset):
-    result = _run("veragmil-robomimic-dataset-info", "--dataset", dataset)
-    assert result.returncode == 0, result.stderr[-3000:]
-    assert "total transitions: 12" in result.stdout and "total trajectories: 2" in result.stdout
-    assert '"env_name": "ScoopGranular"' in result.stdout
-
-
-def test_playback_entry_point_writes_a_video(dataset, tmp_path):
-    video = tmp_path / "playback.mp4"
-    result = _run("veragmil-robomimic-playback", "--dataset", dataset, "--video_path", video, "--video_skip", 2)
-    assert result.returncode == 0, result.stderr[-3000:]
-    assert "Playing back episode: demo_1" in result.stdout
-    assert video.stat().st_size > 1000
-
-
-def test_states_to_obs_entry_point_reproduces_the_recorded_observations(dataset):
-    result = _run(
-        "veragmil-robomimic-states-to-obs",
-        "--dataset",
-        dataset,
-        "--output_name",
-        "extracted.hdf5",
-        "--camera_names",
-        "overhead",
-        "--done_mode",
-        1,
-    )
-    assert result.returncode == 0, result.stderr[-3000:]
-    with h5py.File(dataset, "r") as src, h5py.File(dataset.parent / "extracted.hdf5", "r") as out:
-        assert json.loads(out["data"].attrs["env_args"])["env_name"] == "ScoopGranular"
-        assert list(out["mask/valid"]) == list(src["mask/valid"])
-        for demo in ("demo_0", "demo_1"):
-            for key in TASK_KEYS:
-                np.testing.assert_allclose(out[f"data/{demo}/obs/{key}"], src[f"data/{demo}/obs/{key}"], atol=1e-9)
-            extracted = out[f"data/{demo}/obs/overhead_image"][()].astype(float)
-            assert np.abs(extracted - src[f"data/{demo}/obs/overhead_image"][()]).mean() < 1.0
-            assert out[f"data/{demo}/dones"][-1] == 1
 
 
 def test_a_failing_script_exits_nonzero(tmp_path):
