@@ -56,6 +56,7 @@ CASES = [
     ("veragmil-quickstart", ["--episodes", "0"], "argument --episodes: must be a positive"),
     ("veragmil-study", ["--output-dir", "{tmp}/s", "--agent", "old=nowhere.pth"], "checkpoint 'nowhere.pth' not found"),
     ("veragmil-bench", ["--foods", "caviar"], "caviar"),
+    ("veragmil-bench", ["--sleep-tolerance", "0"], "--sleep-tolerance: sleep_tolerance must be a positive number"),
 ]  # fmt: skip
 
 

@@ -29,7 +29,7 @@ import veragmil_suite  # noqa: F401  (registers ScoopGranular)
 from veragmil_suite.episode import run_until_done
 from veragmil_suite.foods import FOODS, TRAINING_FOODS
 from veragmil_suite.humanoid import check_robot
-from veragmil_suite.models.scoop_task import GRAIN_SLEEP_TOLERANCE
+from veragmil_suite.models.scoop_task import GRAIN_SLEEP_TOLERANCE, check_sleep_tolerance
 
 REAL_TIME_STEPS_PER_S = 20.0  # the default 20 Hz control rate
 # the speed issue's goals with sleeping: at rest 0.6x Lift; whole expert episodes of the slowest training food 1.5x
@@ -141,8 +141,10 @@ def main(argv: list[str] | None = None) -> None:
         help=f"MuJoCo's sleep_tolerance of the 'asleep' columns (default {GRAIN_SLEEP_TOLERANCE}, the task's)",
     )
     args = parser.parse_args(argv)
-    if not args.sleep_tolerance > 0:
-        parser.error(f"--sleep-tolerance must be a positive number, got {args.sleep_tolerance}")
+    try:
+        check_sleep_tolerance(args.sleep_tolerance)
+    except ValueError as e:
+        parser.error(f"--sleep-tolerance: {e}")
     foods = [f.strip() for f in args.foods.split(",") if f.strip()]
     unknown = [f for f in foods if f not in FOODS]
     if unknown:

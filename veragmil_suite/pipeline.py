@@ -361,14 +361,14 @@ def record_scripted_dataset(
             file,
             food,
             max(demo_counts),
-            profile,
-            food_seed(seed, food),
-            horizon,
-            n_grains,
-            cameras,
-            workers,
-            ray,
-            robot,
+            profile=profile,
+            seed=food_seed(seed, food),
+            horizon=horizon,
+            n_grains=n_grains,
+            cameras=cameras,
+            workers=workers,
+            ray=ray,
+            robot=robot,
         )
         if seconds is None:
             say(f"skipping recording {profile} {food}: {file} holds its {max(demo_counts)} demos")

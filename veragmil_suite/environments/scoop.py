@@ -20,7 +20,13 @@ from veragmil_suite.models.arena import ScoopArena
 from veragmil_suite.models.bowl import DEFAULT_BOWL_SHAPE, Bowl
 from veragmil_suite.models.dish import DishShape
 from veragmil_suite.models.grains import GrainPile
-from veragmil_suite.models.scoop_task import GRAIN_SLEEP_TOLERANCE, PHYSICS_TIMESTEP_S, PILE_SOLVER_OPTIONS, ScoopTask
+from veragmil_suite.models.scoop_task import (
+    GRAIN_SLEEP_TOLERANCE,
+    PHYSICS_TIMESTEP_S,
+    PILE_SOLVER_OPTIONS,
+    ScoopTask,
+    check_sleep_tolerance,
+)
 from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
 from veragmil_suite.settling import SettledPile, pile_key, settle
 
@@ -185,12 +191,7 @@ class ScoopGranular(ManipulationEnv):
         self.min_portion_cm3 = min_portion_cm3
         self.max_spill_fraction = max_spill_fraction
         self.fast_rendering = fast_rendering
-        if sleep_tolerance is not None and not (isinstance(sleep_tolerance, (int, float)) and sleep_tolerance > 0):
-            raise ValueError(
-                f"sleep_tolerance must be a positive number (MuJoCo's, e.g. {GRAIN_SLEEP_TOLERANCE}) or None "
-                f"(nothing sleeps), got {sleep_tolerance!r}"
-            )
-        self.sleep_tolerance = sleep_tolerance
+        self.sleep_tolerance = check_sleep_tolerance(sleep_tolerance)
         self.physics_solver_options = physics_solver_options
 
         # settings for table top: the bowl sits in the middle of the table

@@ -29,6 +29,25 @@ PILE_SOLVER_OPTIONS = {
 # something awake touches its island. MuJoCo's default, 1e-4, is under a settled pile's own creep: no grain slept.
 # 3e-3 is the largest measured at which the expert's success, load and spillage stay those of sleeping off (README).
 GRAIN_SLEEP_TOLERANCE = 3e-3
+
+
+def check_sleep_tolerance(value) -> float | None:
+    """
+    A sleep_tolerance as ScoopTask takes it: None (nothing sleeps) or a positive number.
+
+    Raises:
+        ValueError: [anything else; the message names the accepted values]
+    """
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
+        raise ValueError(
+            f"sleep_tolerance must be a positive number (MuJoCo's, e.g. {GRAIN_SLEEP_TOLERANCE}) or None "
+            f"(nothing sleeps), got {value!r}"
+        )
+    return float(value)
+
+
 # Software (osmesa) rendering: no multisampling, coarse tessellation and no shadow map render 300 grains at
 # 140 fps at 84x84, against 3.6 fps at MuJoCo's default quality.
 FAST_RENDER_QUALITY = {"offsamples": "0", "numslices": "8", "numstacks": "4", "shadowsize": "0"}

@@ -83,15 +83,14 @@ def _episode_piece(context: tuple[str, str, dict], piece: tuple[str, int]) -> di
 
 def _sleep_tolerance(text: str) -> float | None:
     """argparse type of --sleep-tolerance: 'none' or a positive float."""
-    if text.lower() == "none":
-        return None
+    from veragmil_suite.models.scoop_task import check_sleep_tolerance
+
     try:
-        value = float(text)
-    except ValueError:
-        value = -1.0
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"{text!r}: accepted values are 'none' or a positive number (e.g. 1e-3)")
-    return value
+        return check_sleep_tolerance(None if text.lower() == "none" else float(text))
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: accepted values are 'none' or a positive number (e.g. 1e-3)"
+        ) from e
 
 
 def summarize(results: list[dict]) -> dict:
