@@ -99,18 +99,30 @@ def test_one_axis_drift_correction_interrupts_a_turn_and_gives_it_back():
 
 
 def test_measure_expert_compares_runs_seed_by_seed(tmp_path):
-    def episode(food, seed, load, success=True):
+    def episode(food, seed, load, success=True, wall_s=10.0):
         return dict(
-            food=food, seed=seed, grains_in_spoon=load, success=success, grains_spilled=0, completion_time_s=9.0
+            food=food,
+            seed=seed,
+            grains_in_spoon=load,
+            success=success,
+            grains_spilled=0,
+            completion_time_s=9.0,
+            steps=200,
+            wall_s=wall_s,
         )
 
     before = dict(mujoco="3.3.7", sleep_tolerance=None, episodes=[episode("rice", 0, 20), episode("rice", 1, 30)])
-    after = dict(mujoco="3.8.1", sleep_tolerance=3e-3, episodes=[episode("rice", 0, 20), episode("rice", 1, 26, False)])
+    after = dict(
+        mujoco="3.8.1",
+        sleep_tolerance=3e-3,
+        solver={"iterations": "20"},
+        episodes=[episode("rice", 0, 20, wall_s=5.0), episode("rice", 1, 26, False, wall_s=5.0)],
+    )
     paths = []
     for name, run in (("before", before), ("after", after)):
         paths.append(tmp_path / f"{name}.json")
         paths[-1].write_text(json.dumps(run))
     table = compare([str(p) for p in paths])
-    assert "| rice | 2/2, 25.0 +- 5.0, 0.0, 9.00 s | 1/2, 23.0 +- 3.0, 0.0, 9.00 s |" in table
-    assert "mujoco 3.3.7, sleep off" in table and "mujoco 3.8.1, sleep 0.003" in table
+    assert "| rice | 2/2, 25.0 +- 5.0, 0.0, 9.00 s, 20.0/s | 1/2, 23.0 +- 3.0, 0.0, 9.00 s, 40.0/s |" in table
+    assert "mujoco 3.3.7, sleep off" in table and "mujoco 3.8.1, sleep 0.003, iterations=20" in table
     assert "rice -2.0 (same load 1/2)" in table

@@ -8,6 +8,7 @@ Episode s is a fresh environment made with seed s, so its bowl is not that of ve
     python -m veragmil_suite.scripts.measure_expert --robot G1FixedLowerBody --episodes 10 --workers 1
     python -m veragmil_suite.scripts.measure_expert --sleep-tolerance none --json before.json
     python -m veragmil_suite.scripts.measure_expert --compare before.json after.json
+    python -m veragmil_suite.scripts.measure_expert --solver iterations=20 --json cg20.json
 """
 
 from __future__ import annotations
@@ -81,6 +82,30 @@ def _episode_piece(context: tuple[str, str, dict], piece: tuple[str, int]) -> di
     return run_expert_episode(food, seed, profile, env_kwargs=env_kwargs, robot=robot)
 
 
+# MuJoCo <option> attributes --solver may override (numbers: the solver's effort, not the task's physics constants)
+SOLVER_KEYS = ("iterations", "ls_iterations", "tolerance", "ls_tolerance")
+
+
+def _solver_option(text: str) -> tuple[str, str]:
+    """argparse type of --solver: KEY=NUMBER with KEY one of SOLVER_KEYS."""
+    key, _, value = text.partition("=")
+    try:
+        number = float(value)
+    except ValueError:
+        number = -1.0
+    if key not in SOLVER_KEYS or not number > 0:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: expected KEY=NUMBER with KEY one of {', '.join(SOLVER_KEYS)} and a positive NUMBER"
+        )
+    return key, value
+
+
+def _label(run: dict) -> str:
+    """A --json run's name in --compare: its MuJoCo, sleep tolerance and solver overrides."""
+    solver = "".join(f", {k}={v}" for k, v in (run.get("solver") or {}).items())
+    return f"mujoco {run.get('mujoco', '?')}, sleep {run.get('sleep_tolerance') or 'off'}{solver}"
+
+
 def _sleep_tolerance(text: str) -> float | None:
     """argparse type of --sleep-tolerance: 'none' or a positive float."""
     from veragmil_suite.models.scoop_task import check_sleep_tolerance
@@ -121,7 +146,7 @@ def compare(paths: list[str]) -> str:
     for path in paths:
         with open(path) as f:
             runs.append(json.load(f))
-    label = [f"mujoco {r.get('mujoco', '?')}, sleep {r.get('sleep_tolerance') or 'off'}" for r in runs]
+    label = [_label(r) for r in runs]
     lines = ["| food | " + " | ".join(label) + " |", "|---|" + "---|" * len(runs)]
     foods = list(dict.fromkeys(e["food"] for r in runs for e in r["episodes"]))
     by_seed = [{(e["food"], e["seed"]): e for e in r["episodes"]} for r in runs]
@@ -131,12 +156,17 @@ def compare(paths: list[str]) -> str:
             eps = [e for e in r["episodes"] if e["food"] == food]
             load = np.array([e["grains_in_spoon"] for e in eps])
             times = [e["completion_time_s"] for e in eps if e["success"]]
+            rate = sum(e["steps"] for e in eps) / sum(e["wall_s"] for e in eps) if "wall_s" in eps[0] else float("nan")
+            spilled = np.mean([e["grains_spilled"] for e in eps])
             cells.append(
                 f"{sum(e['success'] for e in eps)}/{len(eps)}, {load.mean():.1f} +- {load.std():.1f}, "
-                f"{np.mean([e['grains_spilled'] for e in eps]):.1f}, {np.mean(times) if times else float('nan'):.2f} s"
+                f"{spilled:.1f}, {np.mean(times) if times else float('nan'):.2f} s, {rate:.1f}/s"
             )
         lines.append(f"| {food} | " + " | ".join(cells) + " |")
-    lines.append("\n(cells: successes, grains in the spoon at the end, spilled pieces, seconds to success)\n")
+    lines.append(
+        "\n(cells: successes, grains in the spoon at the end, spilled pieces, seconds to success, env steps per "
+        "second of wall time over the episodes, resets included)\n"
+    )
     for name, seeds in zip(label[1:], by_seed[1:]):
         parts = []
         for food in foods:
@@ -170,6 +200,14 @@ def main(argv: list[str] | None = None) -> int:
         default=GRAIN_SLEEP_TOLERANCE,
         help=f"MuJoCo's sleep_tolerance for the grains, or 'none': sleeping off (default {GRAIN_SLEEP_TOLERANCE})",
     )
+    p.add_argument(
+        "--solver",
+        type=_solver_option,
+        action="append",
+        default=[],
+        metavar="KEY=NUMBER",
+        help=f"override a MuJoCo solver option of the task (repeat for more; keys: {', '.join(SOLVER_KEYS)})",
+    )
     p.add_argument("--json", default=None, help="also write every episode and the summary to this file")
     p.add_argument("--compare", nargs="+", metavar="JSON", help="print earlier --json runs side by side, run nothing")
     args = p.parse_args(argv)
@@ -183,7 +221,8 @@ def main(argv: list[str] | None = None) -> int:
 
     jobs = [(f, s) for s in range(args.first_seed, args.first_seed + args.episodes) for f in args.foods]
     results = []
-    env_kwargs = dict(sleep_tolerance=args.sleep_tolerance)
+    solver = dict(args.solver)
+    env_kwargs = dict(sleep_tolerance=args.sleep_tolerance, physics_solver_options=solver or None)
     context = (args.profile, args.robot, env_kwargs)
     pieces = run_pieces(_episode_piece, jobs, context=context, processes=args.workers, ordered=True)
     for _, r in pieces:
@@ -196,7 +235,10 @@ def main(argv: list[str] | None = None) -> int:
             flush=True,
         )
     summary = summarize(results)
-    print(f"\n{args.robot}, profile {args.profile}, {args.episodes} episodes per food, sleep {args.sleep_tolerance}")
+    print(
+        f"\n{args.robot}, profile {args.profile}, {args.episodes} episodes per food, sleep {args.sleep_tolerance}"
+        + "".join(f", {k}={v}" for k, v in solver.items())
+    )
     print("food        success  spilled(pieces)  spilled(cm3)  spill%      in spoon  time(s)")
     for food, s in summary.items():
         t = "n/a" if s["mean_completion_time_s"] is None else f"{s['mean_completion_time_s']:.2f}"
@@ -213,6 +255,7 @@ def main(argv: list[str] | None = None) -> int:
                     robot=args.robot,
                     profile=args.profile,
                     sleep_tolerance=args.sleep_tolerance,
+                    solver=solver,
                     mujoco=importlib.metadata.version("mujoco"),
                     episodes=results,
                     summary=summary,
