@@ -17,6 +17,7 @@ from veragmil_suite.foods import FOODS
 from veragmil_suite.kinematics import solve_pose_ik
 from veragmil_suite.models.bowl import DEFAULT_BOWL_SHAPE
 from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
+from veragmil_suite.robomimic_obs import model_xml
 
 ROBOTS = ["XArm7", "Panda", "Sawyer", "UR5e", "IIWA", "Kinova3", "Jaco"]
 OBJECT_KEYS = {"desired_pose": 7, "bowl_pos": 3, "spoon_to_desired_pos": 3, "spoon_load": 2}
@@ -266,11 +267,11 @@ def test_stage_tracker_keeps_the_furthest_stage_and_held_means_success():
 def test_same_seed_same_xml_and_state_and_exact_replay():
     a, b = make_env("barley", seed=7, pile_variants=3), make_env("barley", seed=7, pile_variants=3)
     a.reset(), b.reset()
-    assert a.sim.model.get_xml() == b.sim.model.get_xml()
+    assert model_xml(a) == model_xml(b)
     np.testing.assert_array_equal(a.sim.get_state().flatten(), b.sim.get_state().flatten())
 
     # robosuite's playback recipe: XML + flattened state, then the actions open loop
-    xml = a.sim.model.get_xml()
+    xml = model_xml(a)
     a.reset_from_xml_string(xml)
     a.sim.reset()
     a.sim.set_state_from_flattened(b.sim.get_state().flatten())
@@ -366,7 +367,7 @@ def test_a_deeper_bowl_gets_its_own_start_pose():
 def test_loading_a_saved_state_places_and_settles_no_pile(monkeypatch):
     env = make_env("pasta", n_grains=12)
     env.reset()
-    xml, state = env.sim.model.get_xml(), env.sim.get_state().flatten()
+    xml, state = model_xml(env), env.sim.get_state().flatten()
     calls = []
     monkeypatch.setattr(scoop_module, "settle", lambda *a, **k: calls.append(a))
     env.reset_from_xml_string(xml)
@@ -473,7 +474,7 @@ def test_reloading_another_variants_xml_uses_that_piles_grain_sizes():
     seen = {}
     for _ in range(30):
         env.reset()
-        seen.setdefault(env.pile_variant, (env.sim.model.get_xml(), env.grain_volumes_m3.copy()))
+        seen.setdefault(env.pile_variant, (model_xml(env), env.grain_volumes_m3.copy()))
         if len(seen) == 3:
             break
     assert len(seen) == 3
@@ -484,11 +485,11 @@ def test_reloading_another_variants_xml_uses_that_piles_grain_sizes():
     other = make_env("rice", n_grains=env.n_grains, seed=0)
     other.reset()
     with pytest.raises(ValueError, match="pile variants of 'barley'"):
-        env.reset_from_xml_string(other.sim.model.get_xml().replace("rice", "barley"))
+        env.reset_from_xml_string(model_xml(other).replace("rice", "barley"))
     fewer = make_env("pasta", n_grains=env.n_grains - 1, seed=0)
     fewer.reset()
     with pytest.raises(
         ValueError, match=f"holds {env.n_grains - 1} grains, this environment {env.n_grains} of 'barley'"
     ):
-        env.reset_from_xml_string(fewer.sim.model.get_xml())
+        env.reset_from_xml_string(model_xml(fewer))
     env.close(), other.close(), fewer.close()

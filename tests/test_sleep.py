@@ -7,6 +7,7 @@ from helpers.env import grain_positions, make_env
 
 from veragmil_suite.expert import ScriptedScooper
 from veragmil_suite.models.scoop_task import GRAIN_SLEEP_TOLERANCE
+from veragmil_suite.robomimic_obs import model_xml
 
 # control steps a settled pile is given to fall asleep (within 10 at GRAIN_SLEEP_TOLERANCE, 40 at 1e-3)
 REST_STEPS = 40
@@ -73,7 +74,7 @@ def test_the_spoon_wakes_what_it_touches_and_leaves_nothing_asleep_in_the_air():
     assert _asleep(env).mean() > 0.5
 
     # the same state with sleeping off: a grain left asleep without support would now fall
-    state, xml = env.sim.get_state().flatten(), env.sim.model.get_xml()
+    state, xml = env.sim.get_state().flatten(), model_xml(env)
     awake = make_env("barley", sleep_tolerance=None)
     awake.reset_from_xml_string(xml.replace('sleep="enable"', 'sleep="disable"'))
     awake.sim.set_state_from_flattened(state)
@@ -98,7 +99,7 @@ def _playback_start(env, xml: str, state: np.ndarray) -> None:
 def test_open_loop_replay_through_sleep_and_wake_is_exact():
     a = make_env("pasta", n_grains=20, seed=3)
     a.reset()
-    xml, start = a.sim.model.get_xml(), a.sim.get_state().flatten()
+    xml, start = model_xml(a), a.sim.get_state().flatten()
     _playback_start(a, xml, start)
     rng = np.random.default_rng(0)
     # still (the pile falls asleep), then the spoon pushed down into it (it wakes)
