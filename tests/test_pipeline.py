@@ -71,6 +71,21 @@ def test_bad_settings_name_the_accepted_values(tmp_path):
     assert not (tmp_path / "q").exists() and not (tmp_path / "s").exists()
 
 
+def test_no_operators_leaves_the_scripted_operators_out_of_the_study():
+    import argparse
+
+    from veragmil_suite.scripts.study import add_pipeline_arguments, settings_from_args
+
+    parser = argparse.ArgumentParser()
+    add_pipeline_arguments(parser, PipelineSettings(output_dir="runs/study"))
+    argv = ["--output-dir", "runs/x", "--profiles", "expert", "expert-dart", "--algos", "bc"]
+    assert settings_from_args(parser.parse_args(argv)).own_agents() == [
+        "expert operator", "expert-dart operator", "expert BC", "expert-dart BC"
+    ]  # fmt: skip
+    without = settings_from_args(parser.parse_args([*argv, "--no-operators"]))
+    assert without.own_agents() == ["expert BC", "expert-dart BC"]
+
+
 def test_an_algorithm_with_its_own_budget_is_evaluated_at_its_end_and_at_the_sweeps_steps_it_reaches(tmp_path):
     grid = dict(output_dir=str(tmp_path), algos=["bc", "bc_rnn", "bcq"], epochs=100, steps_per_epoch=500)
     settings = PipelineSettings(**grid, algo_epochs={"bc_rnn": 40})

@@ -88,6 +88,12 @@ def add_pipeline_arguments(p: argparse.ArgumentParser, defaults: PipelineSetting
         "with the humanoid extra)",
     )
     p.add_argument(
+        "--no-operators",
+        dest="score_demonstrators",
+        action="store_false",
+        help="do not score the scripted operators themselves (the Human column), e.g. when measure_expert has",
+    )
+    p.add_argument(
         "--agent",
         action="append",
         metavar="[NAME=]SPEC",
@@ -116,6 +122,7 @@ def settings_from_args(args: argparse.Namespace) -> PipelineSettings:
         n_grains=args.n_grains,
         robot=args.robot,
         seed=args.seed,
+        score_demonstrators=args.score_demonstrators,
         agents=agent_columns(getattr(args, "agent", None), defaults=args.default_agents),
         ray=getattr(args, "ray", None),
     )
