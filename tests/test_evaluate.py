@@ -231,6 +231,12 @@ def test_cli_expert_and_dataset_in_two_processes_write_every_output(tmp_path):
     assert "robosuite" in saved["config"]["versions"]
     assert "Table II" in result.stdout and "| pasta |" in result.stdout and "human" in result.stdout
     assert "episodes:" not in result.stderr  # --quiet: no progress bar
+    # --resume takes the journaled episodes (a video's episode too, its file being there) and writes the same tables
+    again = _run(*args, "--videos", 1, "--quiet", "--resume")
+    assert again.returncode == 0, again.stdout[-3000:] + again.stderr[-3000:]
+    assert "skipping 2 evaluation episodes journaled" in again.stdout and "; 0 to run" in again.stdout
+    resumed = json.loads((out / "results.json").read_text())
+    assert [e for e in resumed["episodes"] if e["agent"] == "expert"] == expert
 
 
 def test_bad_food_or_agent_exits_2_naming_the_accepted_values_and_writes_nothing(tmp_path, capsys):

@@ -79,6 +79,12 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="the robot every agent scoops with (default: the checkpoints', else XArm7; G1FixedLowerBody: the G1)",
     )
+    p.add_argument(
+        "--resume",
+        action="store_true",
+        help="take the episodes journaled in OUTPUT_DIR/episodes.jsonl (same agent SPEC, food, seed, horizon and "
+        "env kwargs, whatever the agent's name) instead of running them again; without it the journal is replaced",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_ray_argument(p, "the episodes")
     return p
@@ -124,6 +130,8 @@ def _evaluate(agents: dict[str, str], args: argparse.Namespace):
         video_camera=args.video_camera,
         ray=args.ray,
         robot=args.robot,
+        resume=args.resume,
+        say=print,
     )
 
 
