@@ -141,7 +141,7 @@ def test_a_vr_collection_in_chromium_discards_keeps_and_saves_scoop_granular_dem
             print("collect:", collect.communicate()[0][-3000:])
             if browser is not None:
                 print("browser:", browser.stdout[-3000:], browser.stderr[-3000:])
-    assert browser.returncode == 0, f"browser script failed:\n{browser.stderr[-3000:]}"
+    assert browser.returncode == 0, f"browser script failed:\n{browser.stderr[-3000:]}\ncollect:\n{stderr[-3000:]}"
     assert collect.returncode == 0, stderr[-3000:]
     result = json.loads(browser.stdout.strip().splitlines()[-1])
     assert result["errors"] == []

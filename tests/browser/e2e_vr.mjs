@@ -86,8 +86,13 @@ try {
       await page.evaluate((b) => window.__emulatedHeadset.controllers.right.updateButtonValue(b, 0), step.press);
     }
     if (step.waitFor) {
-      await page.waitForFunction((text) => document.getElementById("status").textContent.includes(text),
-        step.waitFor, { timeout: 30000 });
+      try {
+        await page.waitForFunction((text) => document.getElementById("status").textContent.includes(text),
+          step.waitFor, { timeout: 30000 });
+      } catch (e) {
+        const status = await page.evaluate(() => document.getElementById("status").textContent);
+        throw new Error(`waiting for "${step.waitFor}", the status line says "${status}": ${e.message}`);
+      }
     }
     result.moves.push({ move, press: step.press || null, ms: Date.now() - t0 });
   }
