@@ -88,7 +88,7 @@ try {
     if (step.waitFor) {
       try {
         await page.waitForFunction((text) => document.getElementById("status").textContent.includes(text),
-          step.waitFor, { timeout: 30000 });
+          step.waitFor, { timeout: 90000 });
       } catch (e) {
         const status = await page.evaluate(() => document.getElementById("status").textContent);
         throw new Error(`waiting for "${step.waitFor}", the status line says "${status}": ${e.message}`);
