@@ -26,6 +26,14 @@ EVAL_FILES = (
     "success.png",
     "curves.csv",
     "curves.png",
+    "seeds.md",
+    "seeds.csv",
+    # each recipe's training seeds pooled (its per-episode records are those of the seeds above)
+    "seeds/table.md",
+    "seeds/table.csv",
+    "seeds/stages.md",
+    "seeds/stages.csv",
+    "seeds/success.png",
 )
 
 
@@ -51,6 +59,7 @@ def publish(study_dir: Path, dest: Path, command: str) -> list[str]:
     written = []
     for name in EVAL_FILES:
         if (eval_dir / name).is_file():
+            (dest / name).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(eval_dir / name, dest / name)
             written.append(name)
     timings = json.loads((study_dir / "timings.json").read_text()) if (study_dir / "timings.json").is_file() else {}

@@ -86,6 +86,55 @@ def test_no_operators_leaves_the_scripted_operators_out_of_the_study():
     assert without.own_agents() == ["expert BC", "expert-dart BC"]
 
 
+def test_training_seeds_name_their_runs_and_columns_and_the_default_seed_keeps_its_old_name(tmp_path):
+    grid = dict(output_dir=str(tmp_path), algos=["bc", "bcq"], seed=0)
+    one = PipelineSettings(**grid)
+    assert one.train_seeds == [1] and one.run_name("expert", "bc", 30, 1) == "expert_bc_30demos_2000steps"
+    assert one.own_agents() == ["expert operator", "expert BC", "expert BCQ"]
+    three = PipelineSettings(**grid, train_seeds=[1, 2, 3, 2], score_demonstrators=False)
+    assert three.train_seeds == [1, 2, 3]
+    assert three.run_name("expert", "bcq", 30, 3) == "expert_bcq_30demos_2000steps_seed3"
+    assert three.own_agents() == [f"expert {a} seed {s}" for a in ("BC", "BCQ") for s in (1, 2, 3)]
+    assert three.model_label("expert", "bc", 30, 2000) == "expert BC"  # the recipe, all its seeds
+    with pytest.raises(ValueError, match=r"train_seeds must be integers >= 0 .* got \[-1\]"):
+        PipelineSettings(**grid, train_seeds=[-1])
+
+
+def test_the_seed_table_gives_each_seeds_rate_and_their_mean_and_range():
+    from veragmil_suite.evaluation import EpisodeRecord, EvaluationResult
+    from veragmil_suite.pipeline import seed_markdown, seed_spread
+
+    def episodes(agent, food, successes, n=4):
+        common = dict(grains_spilled=0, spilled_volume_cm3=0.0, completion_time_s=9.0, steps=200, end_reason="",
+                      physics_error="", grains_in_spoon=5, spill_fraction=0.0, peak_grains_in_spoon=5,
+                      wall_s=1.0)  # fmt: skip
+        return [
+            EpisodeRecord(
+                agent=agent,
+                food=food,
+                episode=i,
+                seed=i,
+                success=i < successes,
+                stage="held" if i < successes else "start",
+                **common,
+            )
+            for i in range(n)
+        ]
+
+    records = (
+        episodes("a1", "rice", 4) + episodes("a1", "peas", 1) + episodes("a2", "rice", 2) + episodes("a2", "peas", 3)
+    )
+    result = EvaluationResult(records, agents=["a1", "a2"], foods=["rice", "peas"])
+    points = [dict(agent="a1", recipe="BC", train_seed=1), dict(agent="a2", recipe="BC", train_seed=2)]
+    rows = {r["train_seed"]: r for r in seed_spread(result, points)}
+    assert [rows[k]["seen success %"] for k in (1, 2, "mean", "lowest", "highest")] == [100, 50, 75, 50, 100]
+    assert [rows[k]["unseen success %"] for k in (1, 2, "mean")] == [25, 75, 50]
+    assert rows["mean"]["overall success %"] == 62.5
+    assert "| BC | 1, 2 | 75 (50-100) | 50 (25-75) | 62 (62-62) | 100, 50 | 25, 75 | 62, 62 |" in seed_markdown(
+        list(rows.values())
+    )
+
+
 def test_an_algorithm_with_its_own_budget_is_evaluated_at_its_end_and_at_the_sweeps_steps_it_reaches(tmp_path):
     grid = dict(output_dir=str(tmp_path), algos=["bc", "bc_rnn", "bcq"], epochs=100, steps_per_epoch=500)
     settings = PipelineSettings(**grid, algo_epochs={"bc_rnn": 40})
@@ -201,6 +250,20 @@ def test_a_killed_study_resumes_and_skips_every_finished_piece(tmp_path):
     last_only = _run("veragmil-study", *args[: args.index("--eval-steps")], "--episodes", "1")
     assert last_only.returncode == 0 and "skipping training expert_bc_2demos_10steps" in last_only.stdout
     assert "skipping 3 evaluation episodes" in last_only.stdout  # operator and the two last checkpoints
+    # a second training seed trains one more run beside the first (kept: it is seed 1's) and reports the spread
+    seeds = [*CHEAP_STUDY, "--output-dir", out, "--demos-per-food", "1", "--eval-foods", "pasta", "--episodes", "1"]
+    two = _run("veragmil-study", *seeds, "--train-seeds", "1", "2", "--no-operators")
+    assert two.returncode == 0, two.stdout[-3000:] + two.stderr[-3000:]
+    assert "skipping training expert_bc_1demos_10steps:" in two.stdout
+    assert len(list((out / "runs").glob("expert_bc_1demos_10steps_seed2/*/models/model_epoch_2.pth"))) == 1
+    assert json.loads((out / "runs" / "expert_bc_1demos_10steps_seed2.json").read_text())["train"]["seed"] == 2
+    assert "skipping 1 evaluation episodes" in two.stdout and "; 1 to run" in two.stdout
+    with open(out / "eval" / "seeds.csv") as f:
+        spread = {r["train_seed"]: float(r["seen success %"]) for r in csv.DictReader(f)}
+    assert spread["mean"] == (spread["1"] + spread["2"]) / 2 and spread["lowest"] == min(spread["1"], spread["2"])
+    assert "| expert BC | 1, 2 |" in (out / "eval" / "seeds.md").read_text()
+    pooled = json.loads((out / "eval" / "seeds" / "results.json").read_text())
+    assert [(s["agent"], s["episodes"]) for s in pooled["summary"]] == [("expert BC", 2)]
 
 
 def test_a_study_refuses_to_mix_settings_in_one_folder(tmp_path):

@@ -12,7 +12,8 @@ or partial grid continues where it stopped and a larger one reuses the pieces of
   asked for (a shorter one, from a killed run, is recorded again: attempts are seeded, so the demos are the same).
   The foods' files are merged into ``data/<profile>.hdf5`` with a mask ``first<N>`` per demo count: the first N
   demos of each food, so smaller datasets are prefixes of larger ones.
-- Training: ``runs/<profile>_<algo>_<N>demos_<steps>steps``, complete once its last checkpoint exists and its
+- Training: ``runs/<profile>_<algo>_<N>demos_<steps>steps`` (``_seed<S>`` added for a training seed other than the
+  default, ``seed + 1``), complete once its last checkpoint exists and its
   config equals the one asked for (a different one is refused: pick another output directory).
 - Evaluation: every finished episode is journaled (veragmil_suite.evaluation), and only the missing ones run.
 
@@ -70,6 +71,8 @@ class PipelineSettings:
     ``eval_steps`` its training reaches.
     ``agents`` (name -> agent SPEC of veragmil_suite.evaluation) are evaluated beside the run's own, on the same
     bowls: a pretrained checkpoint, another operator profile, a recorded dataset.
+    ``train_seeds`` (default: ``seed + 1`` alone) trains each model once per seed, on the same data: the spread
+    between training seeds of one recipe is as large as the differences between recipes, so comparisons need it.
     """
 
     output_dir: str
@@ -89,6 +92,7 @@ class PipelineSettings:
     n_grains: int | None = None
     robot: str = "XArm7"  # records, trains and evaluates with this robot (veragmil_suite.humanoid: the G1)
     score_demonstrators: bool = True
+    train_seeds: list[int] | None = None
     agents: dict[str, str] = field(default_factory=dict)
     ray: str | None = None  # None: local processes; else a Ray cluster's address (distributed.THIS_MACHINE: here)
 
@@ -128,6 +132,11 @@ class PipelineSettings:
                 f"({self.steps_per_epoch}) up to epochs x steps_per_epoch ({total})"
             )
         self.eval_steps = steps or None
+        if isinstance(self.train_seeds, int):
+            self.train_seeds = [self.train_seeds]
+        self.train_seeds = list(dict.fromkeys(int(s) for s in self.train_seeds or [self.seed + 1]))
+        if any(s < 0 for s in self.train_seeds):
+            raise ValueError(f"train_seeds must be integers >= 0 (torch's seeds), got {self.train_seeds!r}")
         from veragmil_suite.evaluation import parse_spec
 
         own = set(self.own_agents())
@@ -157,22 +166,32 @@ class PipelineSettings:
         """Whether the run's checkpoints are evaluated at more than one step count."""
         return len({k for algo in self.algos for k in self.steps_of(algo)}) > 1
 
-    def model_label(self, profile: str, algo: str, demos_per_food: int, steps: int) -> str:
+    def model_label(
+        self, profile: str, algo: str, demos_per_food: int, steps: int, train_seed: int | None = None
+    ) -> str:
         """A trained checkpoint's column: profile and algorithm, plus demos and steps when the run sweeps them
-        (or its algorithms train for different budgets)."""
+        (or its algorithms train for different budgets), plus the training seed when there are several (without
+        ``train_seed``: the recipe's label, which names all its seeds)."""
         label = f"{profile} {ALGO_LABELS[algo]}"
         label += f" {demos_per_food} demos" if len(self.demos_per_food) > 1 else ""
         label += f" {_steps_label(steps)} steps" if self.sweeps_steps else ""
+        label += f" seed {train_seed}" if train_seed is not None and len(self.train_seeds) > 1 else ""
         return label
+
+    def run_name(self, profile: str, algo: str, demos_per_food: int, train_seed: int) -> str:
+        """A training run's folder; the default seed's has no suffix, so studies from before seeds resume."""
+        name = f"{profile}_{algo}_{demos_per_food}demos_{self.total_steps_of(algo)}steps"
+        return name if train_seed == self.seed + 1 else f"{name}_seed{train_seed}"
 
     def own_agents(self) -> list[str]:
         """The columns this run makes itself: each profile's operator (when scored) and each checkpoint."""
         names = [f"{p} operator" for p in self.profiles] if self.score_demonstrators else []
         for profile in self.profiles:
             names += [
-                self.model_label(profile, algo, n, k)
+                self.model_label(profile, algo, n, k, s)
                 for algo in self.algos
                 for n in self.demos_per_food
+                for s in self.train_seeds
                 for k in self.steps_of(algo)
             ]
         return names
@@ -567,19 +586,21 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True):
             note(f"record {profile}", seconds or None)
             for algo in settings.algos:
                 for n in counts:
-                    name = f"{profile}_{algo}_{n}demos_{settings.total_steps_of(algo)}steps"
-                    config = training_config(
-                        algo,
-                        dataset,
-                        out / "runs",
-                        name,
-                        settings.epochs_of(algo),
-                        settings.steps_per_epoch,
-                        seed=settings.seed + 1,
-                        filter_key=demo_mask(n),
-                        save_epochs=[k // settings.steps_per_epoch for k in settings.steps_of(algo)],
-                    )
-                    runs.append(dict(profile=profile, algo=algo, demos_per_food=n, config=config))
+                    for train_seed in settings.train_seeds:
+                        config = training_config(
+                            algo,
+                            dataset,
+                            out / "runs",
+                            settings.run_name(profile, algo, n, train_seed),
+                            settings.epochs_of(algo),
+                            settings.steps_per_epoch,
+                            seed=train_seed,
+                            filter_key=demo_mask(n),
+                            save_epochs=[k // settings.steps_per_epoch for k in settings.steps_of(algo)],
+                        )
+                        runs.append(
+                            dict(profile=profile, algo=algo, demos_per_food=n, train_seed=train_seed, config=config)
+                        )
         checkpoints = _train_runs(runs, settings, out / "runs", address, say, note)
 
         agents: dict[str, str] = {}
@@ -590,11 +611,13 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True):
                 agents[f"{profile} operator"] = f"expert:{profile}"
             for run in (r for r in runs if r["profile"] == profile):
                 saved = checkpoints[run["config"]["experiment"]["name"]]
-                algo, n = run["algo"], run["demos_per_food"]
+                algo, n, train_seed = run["algo"], run["demos_per_food"], run["train_seed"]
                 for k in settings.steps_of(algo):
-                    label = settings.model_label(profile, algo, n, k)
+                    label = settings.model_label(profile, algo, n, k, train_seed)
                     agents[label] = str(saved[k // settings.steps_per_epoch])
-                    points.append(dict(agent=label, profile=profile, algo=algo, demos_per_food=n, steps=k))
+                    recipe = settings.model_label(profile, algo, n, k)
+                    points.append(dict(agent=label, recipe=recipe, profile=profile, algo=algo, demos_per_food=n,
+                                       steps=k, train_seed=train_seed))  # fmt: skip
         agents.update(settings.agents)
         say(f"evaluating {len(agents)} agents x {settings.episodes} episodes on {settings.eval_foods}")
         env_kwargs = {"n_grains": settings.n_grains} if settings.n_grains is not None else None
@@ -619,6 +642,8 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True):
         note("evaluate", time.perf_counter() - start)
     if len(settings.demos_per_food) > 1 or settings.sweeps_steps:
         write_learning_curves(result, points, out / "eval")
+    if len(settings.train_seeds) > 1:
+        write_seed_tables(result, points, out / "eval")
     return result
 
 
@@ -699,8 +724,9 @@ def write_learning_curves(result, points: list[dict], out_dir: Path) -> None:
                "steps", "steps")]  # fmt: skip
     axes_of = [a for a in axes_of if len({r[a[0]] for r in rows}) > 1]
     fig, axes = plt.subplots(1, len(axes_of), figsize=(5.5 * len(axes_of), 3.8), squeeze=False)
+    several_seeds = len({r["train_seed"] for r in rows}) > 1
     for ax, (x_key, x_label, line_key, line_label) in zip(axes[0], axes_of):
-        for (profile, algo, line), group in _groups_by(rows, ("profile", "algo", line_key)).items():
+        for (profile, algo, line, seed), group in _groups_by(rows, ("profile", "algo", line_key, "train_seed")).items():
             group = sorted(group, key=lambda r: r[x_key])
             x = [r[x_key] for r in group]
             for key, style in (("seen", "-o"), ("unseen", "--s")):
@@ -708,7 +734,8 @@ def write_learning_curves(result, points: list[dict], out_dir: Path) -> None:
                     continue
                 y = np.array([r[f"{key} success %"] for r in group])
                 err = np.array([[y_ - r[f"{key} ci95 low"], r[f"{key} ci95 high"] - y_] for y_, r in zip(y, group)]).T
-                name = f"{profile} {ALGO_LABELS[algo]}, {line} {line_label}, {key}"
+                seed_label = f", seed {seed}" if several_seeds else ""
+                name = f"{profile} {ALGO_LABELS[algo]}, {line} {line_label}{seed_label}, {key}"
                 ax.errorbar(x, y, yerr=err, fmt=style, capsize=3, label=name)
         ax.set_xscale("log")
         ax.minorticks_off()
@@ -720,6 +747,79 @@ def write_learning_curves(result, points: list[dict], out_dir: Path) -> None:
     fig.tight_layout()
     fig.savefig(out_dir / "curves.png", dpi=100)
     plt.close(fig)
+
+
+def seed_spread(result, points: list[dict]) -> list[dict]:
+    """Success on seen, unseen and all foods (each food weighing the same) of every training seed of each recipe
+    (``points`` name each checkpoint agent's recipe and training seed), then the recipe's mean, lowest and highest
+    over its seeds."""
+    from veragmil_suite.evaluation import SEEN_LABEL, UNSEEN_LABEL, table_rows
+
+    groups = {SEEN_LABEL: "seen", UNSEEN_LABEL: "unseen", "all": "overall"}
+    rows = table_rows(result.summary, result.agents, result.foods)["table2"]
+    averages = {groups[r["group"]]: r for r in rows if r["food"].endswith(" average")}
+    out = []
+    for (recipe,), seeds in _groups_by(points, ("recipe",)).items():
+        per_seed = [
+            dict(
+                recipe=recipe,
+                train_seed=p["train_seed"],
+                **{f"{g} success %": averages[g][p["agent"]] for g in averages},
+            )
+            for p in seeds
+        ]
+        out += per_seed
+        for stat, reduce in (("mean", np.mean), ("lowest", np.min), ("highest", np.max)):
+            values = {f"{g} success %": float(reduce([r[f"{g} success %"] for r in per_seed])) for g in averages}
+            out.append(dict(recipe=recipe, train_seed=stat, **values))
+    return out
+
+
+def seed_markdown(rows: list[dict]) -> str:
+    """The seed table: per recipe, its mean success and the range over its training seeds, then each seed's."""
+    groups = [g for g in ("seen", "unseen", "overall") if f"{g} success %" in rows[0]]
+    lines = [
+        "Success over training seeds (%, each food weighing the same; mean and lowest-highest over the seeds, "
+        "every seed's model scored on the same episodes)",
+        "",
+        "| model | training seeds | " + " | ".join(groups) + " | " + " | ".join(f"{g} per seed" for g in groups) + " |",
+        "|---|---|" + "---:|" * (2 * len(groups)),
+    ]
+    for (recipe,), group in _groups_by(rows, ("recipe",)).items():
+        stats = {r["train_seed"]: r for r in group if isinstance(r["train_seed"], str)}
+        seeds = [r for r in group if not isinstance(r["train_seed"], str)]
+        cells = [
+            f"{stats['mean'][f'{g} success %']:.0f} ({stats['lowest'][f'{g} success %']:.0f}-"
+            f"{stats['highest'][f'{g} success %']:.0f})"
+            for g in groups
+        ]
+        cells += [", ".join(f"{r[f'{g} success %']:.0f}" for r in seeds) for g in groups]
+        lines.append(f"| {recipe} | {', '.join(str(r['train_seed']) for r in seeds)} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def write_seed_tables(result, points: list[dict], out_dir: Path) -> None:
+    """seeds.md and seeds.csv (seed_spread), and seeds/: the tables, stages and chart with each recipe's seeds
+    pooled into one column (its episodes of every seed; intervals over the pooled episodes)."""
+    import csv
+    from dataclasses import replace
+
+    from veragmil_suite.evaluation import EvaluationResult
+
+    rows = seed_spread(result, points)
+    with open(out_dir / "seeds.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    (out_dir / "seeds.md").write_text(seed_markdown(rows))
+    recipe_of = {p["agent"]: p["recipe"] for p in points}
+    pooled = EvaluationResult(
+        episodes=[replace(e, agent=recipe_of.get(e.agent, e.agent)) for e in result.episodes],
+        agents=list(dict.fromkeys(recipe_of.get(a, a) for a in result.agents)),
+        foods=result.foods,
+        config=dict(result.config, pooled_training_seeds=sorted({p["train_seed"] for p in points})),
+    )
+    pooled.write(str(out_dir / "seeds"))
 
 
 def _groups_by(rows: list[dict], keys: tuple[str, ...]) -> dict[tuple, list[dict]]:

@@ -12,6 +12,7 @@ the pieces run as Ray tasks, on this machine or spread over a cluster's nodes (R
 
     veragmil-study                                   # small default: minutes per model on 2 cores
     veragmil-study --demos-per-food 30 --epochs 2000 --episodes 50    # the paper's sizes (see the README)
+    veragmil-study --demos-per-food 30 --epochs 100 --steps-per-epoch 500 --train-seeds 1 2 3   # mean over 3 seeds
     veragmil-study --demos-per-food 30 --epochs 2000 --episodes 50 --ray HEAD:6379 --output-dir /shared/study
 """
 
@@ -82,6 +83,15 @@ def add_pipeline_arguments(p: argparse.ArgumentParser, defaults: PipelineSetting
     p.add_argument("--n-grains", type=positive_int, default=None, help="grains in the bowl (default: each food's own)")
     p.add_argument("--seed", type=int, default=defaults.seed)
     p.add_argument(
+        "--train-seeds",
+        type=int,
+        nargs="+",
+        default=None,
+        metavar="SEED",
+        help="train each model once per seed (torch's), on the same data and scored on the same episodes; "
+        "eval/seeds.md gives each recipe's mean and range over them (default: --seed + 1 alone)",
+    )
+    p.add_argument(
         "--robot",
         default=defaults.robot,
         help="the robot that records, and that the models and operators scoop with (G1FixedLowerBody: the G1, "
@@ -123,6 +133,7 @@ def settings_from_args(args: argparse.Namespace) -> PipelineSettings:
         robot=args.robot,
         seed=args.seed,
         score_demonstrators=args.score_demonstrators,
+        train_seeds=args.train_seeds,
         agents=agent_columns(getattr(args, "agent", None), defaults=args.default_agents),
         ray=getattr(args, "ray", None),
     )
