@@ -683,18 +683,26 @@ def _train_runs(runs: list[dict], settings: PipelineSettings, work_dir: Path, ad
     return checkpoints
 
 
+def _average_rows(result) -> dict[str, dict]:
+    """Table II's average rows of ``result`` by group, "seen", "unseen" and "overall" (those its foods have)."""
+    from veragmil_suite.evaluation import SEEN_LABEL, UNSEEN_LABEL, table_rows
+
+    names = {SEEN_LABEL: "seen", UNSEEN_LABEL: "unseen", "all": "overall"}
+    rows = table_rows(result.summary, result.agents, result.foods)["table2"]
+    return {names[r["group"]]: r for r in rows if r["food"].endswith(" average")}
+
+
 def learning_curves(result, points: list[dict]) -> list[dict]:
     """Success on seen and unseen foods (each food weighing the same, 95% Wilson intervals of the group's totals)
     per checkpoint of a sweep: ``points`` name each checkpoint agent's profile, algo, demos per food and steps."""
-    from veragmil_suite.evaluation import SEEN_LABEL, UNSEEN_LABEL, table_rows, wilson_interval
+    from veragmil_suite.evaluation import wilson_interval
 
-    rows = table_rows(result.summary, result.agents, result.foods)["table2"]
-    averages = {r["group"]: r for r in rows if r["food"].endswith(" average") and r["group"] != "all"}
+    averages = _average_rows(result)
     out = []
     for point in points:
         row = dict(point)
-        for label, key in ((SEEN_LABEL, "seen"), (UNSEEN_LABEL, "unseen")):
-            group = averages.get(label)
+        for key in ("seen", "unseen"):
+            group = averages.get(key)
             if group is None:
                 continue
             a = point["agent"]
@@ -753,11 +761,7 @@ def seed_spread(result, points: list[dict]) -> list[dict]:
     """Success on seen, unseen and all foods (each food weighing the same) of every training seed of each recipe
     (``points`` name each checkpoint agent's recipe and training seed), then the recipe's mean, lowest and highest
     over its seeds."""
-    from veragmil_suite.evaluation import SEEN_LABEL, UNSEEN_LABEL, table_rows
-
-    groups = {SEEN_LABEL: "seen", UNSEEN_LABEL: "unseen", "all": "overall"}
-    rows = table_rows(result.summary, result.agents, result.foods)["table2"]
-    averages = {groups[r["group"]]: r for r in rows if r["food"].endswith(" average")}
+    averages = _average_rows(result)
     out = []
     for (recipe,), seeds in _groups_by(points, ("recipe",)).items():
         per_seed = [
