@@ -250,6 +250,7 @@ def test_a_killed_study_resumes_and_skips_every_finished_piece(tmp_path):
     last_only = _run("veragmil-study", *args[: args.index("--eval-steps")], "--episodes", "1")
     assert last_only.returncode == 0 and "skipping training expert_bc_2demos_10steps" in last_only.stdout
     assert "skipping 3 evaluation episodes" in last_only.stdout  # operator and the two last checkpoints
+    assert not (out / "eval" / "curves.csv").exists() and not (out / "eval" / "curves.png").exists()
     # a second training seed trains one more run beside the first (kept: it is seed 1's) and reports the spread
     seeds = [*CHEAP_STUDY, "--output-dir", out, "--demos-per-food", "1", "--eval-foods", "pasta", "--episodes", "1"]
     two = _run("veragmil-study", *seeds, "--train-seeds", "1", "2", "--no-operators")
@@ -264,6 +265,10 @@ def test_a_killed_study_resumes_and_skips_every_finished_piece(tmp_path):
     assert "| expert BC | 1, 2 |" in (out / "eval" / "seeds.md").read_text()
     pooled = json.loads((out / "eval" / "seeds" / "results.json").read_text())
     assert [(s["agent"], s["episodes"]) for s in pooled["summary"]] == [("expert BC", 2)]
+    # back to one seed: the seed tables of the run before would describe agents this run's table does not hold
+    one = _run("veragmil-study", *seeds, "--no-operators")
+    assert one.returncode == 0 and "; 0 to run" in one.stdout
+    assert not any((out / "eval" / name).exists() for name in ("seeds.csv", "seeds.md", "seeds"))
 
 
 def test_a_study_refuses_to_mix_settings_in_one_folder(tmp_path):

@@ -53,6 +53,9 @@ ROBOMIMIC_TORCH_THREADS = 2
 # Seeds of the foods' recordings are this far apart (by the food's place in the catalog, seen foods first), so
 # every demo of a dataset has its own bowl and pile, whichever foods a run records.
 FOOD_SEED_STRIDE = 1000
+# what eval/ holds beside the evaluation's own tables: learning curves, and the tables over training seeds
+CURVE_FILES = ("curves.csv", "curves.png")
+SEED_FILES = ("seeds.csv", "seeds.md", "seeds")
 
 
 class StageError(RuntimeError):
@@ -640,11 +643,32 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True):
         )
     if result.config["episodes_run"]:  # a fully journaled evaluation keeps the time of the run that did it
         note("evaluate", time.perf_counter() - start)
+    eval_dir = out / "eval"
     if len(settings.demos_per_food) > 1 or settings.sweeps_steps:
-        write_learning_curves(result, points, out / "eval")
+        write_learning_curves(result, points, eval_dir)
+    else:
+        _remove_derived(eval_dir, CURVE_FILES, say)
     if len(settings.train_seeds) > 1:
-        write_seed_tables(result, points, out / "eval")
+        write_seed_tables(result, points, eval_dir)
+    else:
+        _remove_derived(eval_dir, SEED_FILES, say)
     return result
+
+
+def _remove_derived(eval_dir: Path, names: tuple[str, ...], say) -> None:
+    """Tables an earlier run of the folder derived and this one does not: left in place they would describe
+    other agents than the tables beside them."""
+    import shutil
+
+    for name in names:
+        path = eval_dir / name
+        if path.is_dir():
+            shutil.rmtree(path)
+        elif path.exists():
+            path.unlink()
+        else:
+            continue
+        say(f"removed {path}: an earlier run's table that this run does not make")
 
 
 def _train_runs(runs: list[dict], settings: PipelineSettings, work_dir: Path, address: str | None, say, note):
