@@ -300,6 +300,10 @@ def test_bad_input_names_the_problem_and_accepted_values():
         make_env("rice", n_grains=0)
     with pytest.raises(ValueError, match="accepted control frequencies"):
         make_env("rice", control_freq=7)
+    with pytest.raises(ValueError, match=r"physics_timestep_s must be .* at most 10 ms"):
+        make_env("rice", physics_timestep_s=0.02)
+    with pytest.raises(ValueError, match=r"accepted physics steps \(s\) at 20 Hz: 1/100, 1/120"):
+        make_env("rice", physics_timestep_s=1 / 170)
     with pytest.raises(ValueError, match="accepted: OSC_POSE, IK_POSE"):
         load_scoop_controller_config("JOINT_TORQUE")
     with pytest.raises(ValueError, match="IK_POSE controller needs a 7-DoF arm .*XArm7.*UR5e"):
@@ -493,3 +497,19 @@ def test_reloading_another_variants_xml_uses_that_piles_grain_sizes():
     ):
         env.reset_from_xml_string(model_xml(fewer))
     env.close(), other.close(), fewer.close()
+
+
+def test_physics_timestep_sets_the_substeps_and_a_recorded_xml_must_match_it():
+    """physics_timestep_s reaches MuJoCo and robosuite's substep count; a demo's XML of another step is refused
+    (its substeps would not add up to the control period)."""
+    fast = make_env("pasta", n_grains=12, physics_timestep_s=1 / 200)
+    fast.reset()
+    assert fast.sim.model.opt.timestep == pytest.approx(1 / 200)
+    start = fast.sim.data.time
+    fast.step(np.zeros(fast.action_dim))
+    assert fast.sim.data.time - start == pytest.approx(fast.control_timestep)
+    default = make_env("pasta", n_grains=12)
+    default.reset()
+    with pytest.raises(ValueError, match=r"physics step is 0.005 s, this environment's 0.00416667 s: .*=0.005"):
+        default.reset_from_xml_string(model_xml(fast))
+    fast.close(), default.close()

@@ -25,6 +25,7 @@ from veragmil_suite.models.scoop_task import (
     PHYSICS_TIMESTEP_S,
     PILE_SOLVER_OPTIONS,
     ScoopTask,
+    check_physics_timestep,
     check_sleep_tolerance,
 )
 from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
@@ -91,6 +92,8 @@ class ScoopGranular(ManipulationEnv):
         sleep_tolerance (None or float): grains (any body at rest) sleep under this velocity tolerance, MuJoCo's
             island sleeping (veragmil_suite.models.scoop_task.GRAIN_SLEEP_TOLERANCE); None: nothing sleeps
         physics_solver_options (None or dict): MuJoCo <option> attributes for the pile (default: CG, elliptic)
+        physics_timestep_s (float): the physics step (s); it must divide the control period (default
+            veragmil_suite.models.scoop_task.PHYSICS_TIMESTEP_S)
         (robosuite's usual arguments: has_renderer, has_offscreen_renderer, render_camera, render_collision_mesh,
         render_visual_mesh, render_gpu_device_id, control_freq, lite_physics, horizon, ignore_done, hard_reset,
         camera_names, camera_heights, camera_widths, camera_depths, camera_segmentations, renderer,
@@ -131,6 +134,7 @@ class ScoopGranular(ManipulationEnv):
         fast_rendering=True,
         sleep_tolerance=GRAIN_SLEEP_TOLERANCE,
         physics_solver_options=None,
+        physics_timestep_s=PHYSICS_TIMESTEP_S,
         has_renderer=False,
         has_offscreen_renderer=True,
         render_camera="agentview",
@@ -193,6 +197,7 @@ class ScoopGranular(ManipulationEnv):
         self.fast_rendering = fast_rendering
         self.sleep_tolerance = check_sleep_tolerance(sleep_tolerance)
         self.physics_solver_options = physics_solver_options
+        self.physics_timestep_s = check_physics_timestep(physics_timestep_s, control_freq)
 
         # settings for table top: the bowl sits in the middle of the table
         self.table_full_size = table_full_size
@@ -350,6 +355,7 @@ class ScoopGranular(ManipulationEnv):
             solver_options=self.solver_options,
             fast_rendering=self.fast_rendering,
             sleep_tolerance=self.sleep_tolerance,
+            timestep_s=self.physics_timestep_s,
         )
         if self.humanoid is not None:
             for body1, body2 in self_contact_excludes(robot_model.worldbody):
@@ -824,22 +830,22 @@ class ScoopGranular(ManipulationEnv):
 
     def initialize_time(self, control_freq):
         """
-        Initializes the time constants used for simulation: the task's own physics step (see ScoopTask), which
-        must divide the control period.
+        Initializes the time constants used for simulation: the task's own physics step (physics_timestep_s, see
+        ScoopTask), which must divide the control period.
         """
         super().initialize_time(control_freq)
-        self.model_timestep = PHYSICS_TIMESTEP_S
-        substeps = self.control_timestep / self.model_timestep
-        if abs(substeps - round(substeps)) > 1e-6:
-            valid = ", ".join(str(int(1 / (PHYSICS_TIMESTEP_S * k))) for k in (24, 16, 12, 8, 6, 4, 3, 2, 1))
-            raise ValueError(
-                f"control_freq={control_freq} Hz does not divide the {PHYSICS_TIMESTEP_S * 1000:.3f} ms physics step; "
-                f"accepted control frequencies (Hz): {valid}"
-            )
+        self.model_timestep = check_physics_timestep(self.physics_timestep_s, control_freq)
 
     def _initialize_sim(self, xml_string=None):
         super()._initialize_sim(xml_string)
         self._badqacc_seen = 0
+        loaded_step = float(self.sim.model.opt.timestep)
+        if not np.isclose(loaded_step, self.model_timestep, rtol=1e-5, atol=0):
+            raise ValueError(
+                f"the loaded model's physics step is {loaded_step:.6g} s, this environment's "
+                f"{self.model_timestep:.6g} s: make the environment with physics_timestep_s={loaded_step:.6g} "
+                "(a recorded demo's env_kwargs, in its 'env_args' attribute, hold the step it was recorded with)"
+            )
 
     def reset(self, seed: int | None = None):
         """

@@ -6,6 +6,7 @@ import xml.etree.ElementTree as ET
 
 from robosuite.models.tasks import ManipulationTask
 
+from veragmil_suite.foods import CONTACT_TIMECONST_S
 from veragmil_suite.models.grains import GrainPile
 
 # MuJoCo's default Newton solver is unusable for piles (600 peas: 2.6 s per step). Conjugate gradient with an
@@ -48,6 +49,33 @@ def check_sleep_tolerance(value) -> float | None:
     return float(value)
 
 
+def check_physics_timestep(timestep_s, control_freq: float) -> float:
+    """
+    A physics step the task runs: positive, at most half the grains' contact time constant (MuJoCo's stability
+    rule for soft contacts; a longer step stiffens them), and a whole number of steps per control period.
+
+    Raises:
+        ValueError: [anything else; the message names the accepted steps and control frequencies]
+    """
+    limit = CONTACT_TIMECONST_S / 2
+    if isinstance(timestep_s, bool) or not isinstance(timestep_s, (int, float)) or not 0 < timestep_s <= limit:
+        raise ValueError(
+            f"physics_timestep_s must be a positive number of seconds, at most {limit * 1000:g} ms (half the grains' "
+            f"contact time constant), e.g. {PHYSICS_TIMESTEP_S!r} (1/240), got {timestep_s!r}"
+        )
+    substeps = 1.0 / (control_freq * timestep_s)
+    if abs(substeps - round(substeps)) > 1e-6:
+        frequencies = [f"{1 / (timestep_s * k):g}" for k in range(1, 1000) if abs(1 / (timestep_s * k) % 1) < 1e-6]
+        steps = [f"1/{control_freq * k:g}" for k in range(1, 1000) if 1 / (control_freq * k) <= limit]
+        raise ValueError(
+            f"control_freq={control_freq} Hz does not divide the {timestep_s * 1000:.3f} ms physics step: a control "
+            f"period must be a whole number of physics steps; accepted control frequencies (Hz) at this step: "
+            f"{', '.join(frequencies[:10])}, ...; accepted physics steps (s) at {control_freq} Hz: "
+            f"{', '.join(steps[:6])}, ..."
+        )
+    return float(timestep_s)
+
+
 # Software (osmesa) rendering: no multisampling, coarse tessellation and no shadow map render 300 grains at
 # 140 fps at 84x84, against 3.6 fps at MuJoCo's default quality.
 FAST_RENDER_QUALITY = {"offsamples": "0", "numslices": "8", "numstacks": "4", "shadowsize": "0"}
@@ -68,6 +96,7 @@ class ScoopTask(ManipulationTask):
         solver_options (dict): MuJoCo <option> attributes set on the model
         fast_rendering (bool): trade anti-aliasing and shadows for offscreen rendering speed
         sleep_tolerance (None or float): MuJoCo's sleep_tolerance with island sleeping on; None: never sleep
+        timestep_s (float): the physics step (s); see check_physics_timestep
     """
 
     def __init__(
@@ -80,13 +109,14 @@ class ScoopTask(ManipulationTask):
         solver_options=None,
         fast_rendering: bool = True,
         sleep_tolerance: float | None = GRAIN_SLEEP_TOLERANCE,
+        timestep_s: float = PHYSICS_TIMESTEP_S,
     ):
         super().__init__(mujoco_arena=mujoco_arena, mujoco_robots=mujoco_robots, mujoco_objects=mujoco_objects)
         self.grain_pile = grain_pile
         for body in grain_pile.bodies(home_qpos=grain_home_qpos):
             self.worldbody.append(body)
         option = self.root.find("option")
-        option.set("timestep", repr(PHYSICS_TIMESTEP_S))
+        option.set("timestep", repr(float(timestep_s)))
         # Joint damping (the robot's, and the grains' spin damping) is integrated explicitly: every damping here is
         # far below the explicit stability limit, and the implicit update's factorisation cost 15% of a step.
         flag = option.find("flag")

@@ -9,12 +9,14 @@ Episode s is a fresh environment made with seed s, so its bowl is not that of ve
     python -m veragmil_suite.scripts.measure_expert --sleep-tolerance none --json before.json
     python -m veragmil_suite.scripts.measure_expert --compare before.json after.json
     python -m veragmil_suite.scripts.measure_expert --solver iterations=20 --json cg20.json
+    python -m veragmil_suite.scripts.measure_expert --physics-timestep 1/160 --json dt160.json
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib.metadata
+import inspect
 import json
 import os
 import sys
@@ -82,28 +84,47 @@ def _episode_piece(context: tuple[str, str, dict], piece: tuple[str, int]) -> di
     return run_expert_episode(food, seed, profile, env_kwargs=env_kwargs, robot=robot)
 
 
-# MuJoCo <option> attributes --solver may override (numbers: the solver's effort, not the task's physics constants)
+# MuJoCo <option> attributes --solver may override: the solver's effort (positive numbers) and its kind (words)
 SOLVER_KEYS = ("iterations", "ls_iterations", "tolerance", "ls_tolerance")
+SOLVER_CHOICES = {"solver": ("CG", "Newton", "PGS"), "cone": ("elliptic", "pyramidal")}
 
 
 def _solver_option(text: str) -> tuple[str, str]:
-    """argparse type of --solver: KEY=NUMBER with KEY one of SOLVER_KEYS."""
+    """argparse type of --solver: KEY=NUMBER with KEY one of SOLVER_KEYS, or KEY=WORD from SOLVER_CHOICES."""
     key, _, value = text.partition("=")
+    if key in SOLVER_CHOICES:
+        if value not in SOLVER_CHOICES[key]:
+            raise argparse.ArgumentTypeError(f"{text!r}: {key} takes one of {', '.join(SOLVER_CHOICES[key])}")
+        return key, value
     try:
         number = float(value)
     except ValueError:
         number = -1.0
     if key not in SOLVER_KEYS or not number > 0:
         raise argparse.ArgumentTypeError(
-            f"{text!r}: expected KEY=NUMBER with KEY one of {', '.join(SOLVER_KEYS)} and a positive NUMBER"
+            f"{text!r}: expected KEY=NUMBER with KEY one of {', '.join(SOLVER_KEYS)} and a positive NUMBER, or "
+            + ", ".join(f"{k}={'|'.join(v)}" for k, v in SOLVER_CHOICES.items())
         )
     return key, value
 
 
+def _physics_timestep(text: str) -> float:
+    """argparse type of --physics-timestep: seconds, as a number (0.00625) or a fraction (1/160)."""
+    numerator, slash, denominator = text.partition("/")
+    try:
+        value = float(numerator) / float(denominator) if slash else float(text)
+    except (ValueError, ZeroDivisionError):
+        value = -1.0
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected seconds as a positive number or fraction, e.g. 1/240")
+    return value
+
+
 def _label(run: dict) -> str:
-    """A --json run's name in --compare: its MuJoCo, sleep tolerance and solver overrides."""
+    """A --json run's name in --compare: its MuJoCo, sleep tolerance, physics step and solver overrides."""
     solver = "".join(f", {k}={v}" for k, v in (run.get("solver") or {}).items())
-    return f"mujoco {run.get('mujoco', '?')}, sleep {run.get('sleep_tolerance') or 'off'}{solver}"
+    step = f", step 1/{1 / run['physics_timestep_s']:.0f} s" if run.get("physics_timestep_s") else ""
+    return f"mujoco {run.get('mujoco', '?')}, sleep {run.get('sleep_tolerance') or 'off'}{step}{solver}"
 
 
 def _sleep_tolerance(text: str) -> float | None:
@@ -185,7 +206,7 @@ def compare(paths: list[str]) -> str:
 def main(argv: list[str] | None = None) -> int:
     from veragmil_suite.expert import PROFILES
     from veragmil_suite.foods import FOODS, TRAINING_FOODS
-    from veragmil_suite.models.scoop_task import GRAIN_SLEEP_TOLERANCE
+    from veragmil_suite.models.scoop_task import GRAIN_SLEEP_TOLERANCE, PHYSICS_TIMESTEP_S, check_physics_timestep
 
     p = argparse.ArgumentParser(prog="python -m veragmil_suite.scripts.measure_expert", description=__doc__)
     p.add_argument("--foods", nargs="+", choices=list(FOODS), default=list(TRAINING_FOODS), metavar="FOOD")
@@ -206,7 +227,16 @@ def main(argv: list[str] | None = None) -> int:
         action="append",
         default=[],
         metavar="KEY=NUMBER",
-        help=f"override a MuJoCo solver option of the task (repeat for more; keys: {', '.join(SOLVER_KEYS)})",
+        help=f"override a MuJoCo solver option of the task (repeat for more; keys: {', '.join(SOLVER_KEYS)}, "
+        + ", ".join(SOLVER_CHOICES)
+        + ")",
+    )
+    p.add_argument(
+        "--physics-timestep",
+        type=_physics_timestep,
+        default=PHYSICS_TIMESTEP_S,
+        metavar="SECONDS",
+        help="the task's physics step, e.g. 1/160 (default 1/240; the pile is settled at it)",
     )
     p.add_argument("--json", default=None, help="also write every episode and the summary to this file")
     p.add_argument("--compare", nargs="+", metavar="JSON", help="print earlier --json runs side by side, run nothing")
@@ -217,12 +247,21 @@ def main(argv: list[str] | None = None) -> int:
             p.error(f"--compare: no such file {', '.join(missing)} (files written by --json)")
         print(compare(args.compare))
         return 0
+    try:
+        from veragmil_suite.environments.scoop import ScoopGranular
+
+        control_freq = inspect.signature(ScoopGranular).parameters["control_freq"].default
+        check_physics_timestep(args.physics_timestep, control_freq)
+    except ValueError as e:
+        p.error(f"--physics-timestep: {e}")
     from veragmil_suite.distributed import run_pieces
 
     jobs = [(f, s) for s in range(args.first_seed, args.first_seed + args.episodes) for f in args.foods]
     results = []
     solver = dict(args.solver)
     env_kwargs = dict(sleep_tolerance=args.sleep_tolerance, physics_solver_options=solver or None)
+    if args.physics_timestep != PHYSICS_TIMESTEP_S:
+        env_kwargs["physics_timestep_s"] = args.physics_timestep
     context = (args.profile, args.robot, env_kwargs)
     pieces = run_pieces(_episode_piece, jobs, context=context, processes=args.workers, ordered=True)
     for _, r in pieces:
@@ -236,8 +275,8 @@ def main(argv: list[str] | None = None) -> int:
         )
     summary = summarize(results)
     print(
-        f"\n{args.robot}, profile {args.profile}, {args.episodes} episodes per food, sleep {args.sleep_tolerance}"
-        + "".join(f", {k}={v}" for k, v in solver.items())
+        f"\n{args.robot}, profile {args.profile}, {args.episodes} episodes per food, sleep {args.sleep_tolerance}, "
+        f"physics step {args.physics_timestep:.6g} s" + "".join(f", {k}={v}" for k, v in solver.items())
     )
     print("food        success  spilled(pieces)  spilled(cm3)  spill%      in spoon  time(s)")
     for food, s in summary.items():
@@ -256,6 +295,7 @@ def main(argv: list[str] | None = None) -> int:
                     profile=args.profile,
                     sleep_tolerance=args.sleep_tolerance,
                     solver=solver,
+                    physics_timestep_s=args.physics_timestep,
                     mujoco=importlib.metadata.version("mujoco"),
                     episodes=results,
                     summary=summary,
