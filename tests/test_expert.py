@@ -124,5 +124,13 @@ def test_measure_expert_compares_runs_seed_by_seed(tmp_path):
         paths[-1].write_text(json.dumps(run))
     table = compare([str(p) for p in paths])
     assert "| rice | 2/2, 25.0 +- 5.0, 0.0, 9.00 s, 20.0/s | 1/2, 23.0 +- 3.0, 0.0, 9.00 s, 40.0/s |" in table
-    assert "mujoco 3.3.7, sleep off" in table and "mujoco 3.8.1, sleep 0.003, iterations=20" in table
+    assert "mujoco 3.3.7, sleep off" in table and "mujoco 3.8.1, sleep 0.003, step 1/240 s, iterations=20" in table
     assert "rice -2.0 (same load 1/2)" in table
+    # a run of fewer foods (here one at another physics step) leaves the others' cells empty
+    after.update(physics_timestep_s=1 / 200, episodes=[episode("peas", 0, 40)])
+    paths[1].write_text(json.dumps(after))
+    before["episodes"].append(episode("peas", 0, 40))
+    paths[0].write_text(json.dumps(before))
+    table = compare([str(p) for p in paths])
+    assert "| rice | 2/2, 25.0 +- 5.0, 0.0, 9.00 s, 20.0/s | not run |" in table
+    assert "step 1/200 s, iterations=20" in table and "peas +0.0 (same load 1/1)" in table

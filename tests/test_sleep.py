@@ -1,6 +1,8 @@
 """MuJoCo's island sleeping in ScoopGranular: a settled pile falls asleep and stays put, the spoon wakes what it
 touches and scoops as without sleeping, nothing is left asleep in the air, and replay stays exact."""
 
+import re
+
 import numpy as np
 import pytest
 from helpers.env import grain_positions, make_env
@@ -117,3 +119,17 @@ def test_open_loop_replay_through_sleep_and_wake_is_exact():
         b.step(act)
         np.testing.assert_array_equal(b.sim.get_state().flatten(), expected)
     a.close(), b.close()
+
+
+def test_benchmark_reports_how_much_of_an_episode_the_whole_pile_is_awake(capsys):
+    """The speed benchmark's expert table: both settings' episodes are counted (successes off/on) and the pile is
+    awake for part of the episode only (asleep before the spoon arrives), the share sleeping cannot make cheaper."""
+    from veragmil_suite import bench
+
+    bench.main(["--foods", "pasta", "--scales", "1", "--steps", "3", "--episodes", "1"])
+    out = capsys.readouterr().out
+    header, _, row = out.split("Whole expert episodes")[1].strip().splitlines()[1:4]
+    assert header.split()[-2:] == ["pile", "up"]
+    assert re.fullmatch(r"[01]/[01]", row.split()[6])
+    share = float(row.split()[-1].rstrip("%"))
+    assert 0 < share < 100

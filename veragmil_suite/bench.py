@@ -12,7 +12,8 @@ Lift task on the same robot (the G1 with robosuite's default two-arm controller 
 The first table holds the robot still (zero delta actions) over the pile at rest, with the grains awake (island
 sleeping off) and asleep (on, after REST_WARMUP_STEPS to fall asleep). The second runs whole scripted expert episodes
 (the unit recording and evaluation spend), with sleeping off and on: env steps/s, expert episodes per minute on
-one core, and the share of MuJoCo's step spent finding contacts, building the constraints and solving them.
+one core, the share of MuJoCo's step spent finding contacts, building the constraints and solving them, and the
+share of control steps with the whole pile awake (what sleeping leaves to pay).
 Run on an otherwise idle machine.
 """
 
@@ -92,13 +93,21 @@ def make_env(food: str, n_grains: int | None = None, robot: str = "XArm7", sleep
 
 def expert_episodes(food: str, robot: str, sleep_tolerance: float | None, episodes: int) -> dict:
     """Whole scripted expert episodes (seeds 0..episodes-1; resets untimed): env steps/s, seconds per episode,
-    successes, and each STEP_PARTS share of MuJoCo's step time."""
+    successes, each STEP_PARTS share of MuJoCo's step time, and the share of control steps that end with the whole
+    pile awake (the steps sleeping cannot make cheaper)."""
     from veragmil_suite.expert import ScriptedScooper
 
     env = make_env(food, robot=robot, sleep_tolerance=sleep_tolerance)
     expert = ScriptedScooper(env, "expert")
-    steps, seconds, successes = 0, 0.0, 0
+    steps, seconds, successes, pile_awake_steps = 0, 0.0, 0, 0
     parts = dict.fromkeys([*STEP_PARTS, "step"], 0.0)
+
+    def step(action):
+        nonlocal pile_awake_steps
+        out = env.step(action)
+        pile_awake_steps += bool(env.sim.data._data.body_awake[env.grain_body_ids].all())
+        return out
+
     timers = {**STEP_PARTS, "step": mujoco.mjtTimer.mjTIMER_STEP}
     for seed in range(episodes):
         obs = env.reset()
@@ -108,7 +117,7 @@ def expert_episodes(food: str, robot: str, sleep_tolerance: float | None, episod
         start = time.perf_counter()
         end = run_until_done(
             expert.agent,
-            env.step,
+            step,
             obs,
             env.control_freq,
             env.horizon,
@@ -120,7 +129,13 @@ def expert_episodes(food: str, robot: str, sleep_tolerance: float | None, episod
             parts[name] += data.timer[t].duration - before[name]
     env.close()
     shares = {name: parts[name] / parts["step"] for name in STEP_PARTS}
-    return dict(rate=steps / seconds, episode_s=seconds / episodes, successes=successes, **shares)
+    return dict(
+        rate=steps / seconds,
+        episode_s=seconds / episodes,
+        successes=successes,
+        pile_awake=pile_awake_steps / steps,
+        **shares,
+    )
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -211,9 +226,13 @@ def _bench_robot(
         )
     if episodes < 1:
         return
-    print(f"\nWhole expert episodes ({episodes} per food and setting; share of MuJoCo's step: collide/build/solve)")
-    columns = ("awake", "asleep", "gain", "vs Lift", "ep/min", "success", "awake %", "asleep %")
-    header = f"{'food':<10}" + "".join(f" {c:>8}" for c in columns[:6]) + f" {columns[6]:>14} {columns[7]:>14}"
+    print(
+        f"\nWhole expert episodes ({episodes} per food and setting; share of MuJoCo's step: collide/build/solve; "
+        "pile up: control steps ending with every grain awake, sleeping on)"
+    )
+    columns = ("awake", "asleep", "gain", "vs Lift", "ep/min", "success", "awake %", "asleep %", "pile up")
+    header = f"{'food':<10}" + "".join(f" {c:>8}" for c in columns[:6])
+    header += f" {columns[6]:>14} {columns[7]:>14} {columns[8]:>8}"
     print(header)
     print("-" * len(header))
     gains: dict[str, tuple[float, float]] = {}
@@ -226,7 +245,8 @@ def _bench_robot(
         print(
             f"{food:<10} {off['rate']:>8.1f} {on['rate']:>8.1f} {on['rate'] / off['rate']:>7.2f}x "
             f"{on['rate'] / lift_rate:>8.2f} {60 / on['episode_s']:>8.1f} "
-            f"{off['successes']:>3}/{on['successes']:<4} {shares[0]:>14} {shares[1]:>14}",
+            f"{off['successes']:>3}/{on['successes']:<4} {shares[0]:>14} {shares[1]:>14} "
+            f"{100 * on['pile_awake']:>7.0f}%",
             flush=True,
         )
     if gains:

@@ -92,8 +92,9 @@ class ScoopGranular(ManipulationEnv):
         sleep_tolerance (None or float): grains (any body at rest) sleep under this velocity tolerance, MuJoCo's
             island sleeping (veragmil_suite.models.scoop_task.GRAIN_SLEEP_TOLERANCE); None: nothing sleeps
         physics_solver_options (None or dict): MuJoCo <option> attributes for the pile (default: CG, elliptic)
-        physics_timestep_s (float): the physics step (s); it must divide the control period (default
-            veragmil_suite.models.scoop_task.PHYSICS_TIMESTEP_S)
+        physics_timestep_s (float): the physics step (s), a whole number of them per control period (default
+            veragmil_suite.models.scoop_task.PHYSICS_TIMESTEP_S, 1/240 s). A recorded XML loaded later
+            (reset_from_xml_string) runs at the step it was recorded with.
         (robosuite's usual arguments: has_renderer, has_offscreen_renderer, render_camera, render_collision_mesh,
         render_visual_mesh, render_gpu_device_id, control_freq, lite_physics, horizon, ignore_done, hard_reset,
         camera_names, camera_heights, camera_widths, camera_depths, camera_segmentations, renderer,
@@ -831,7 +832,7 @@ class ScoopGranular(ManipulationEnv):
     def initialize_time(self, control_freq):
         """
         Initializes the time constants used for simulation: the task's own physics step (physics_timestep_s, see
-        ScoopTask), which must divide the control period.
+        ScoopTask), which must divide the control period; a model loaded from XML brings its own (_initialize_sim).
         """
         super().initialize_time(control_freq)
         self.model_timestep = check_physics_timestep(self.physics_timestep_s, control_freq)
@@ -839,13 +840,8 @@ class ScoopGranular(ManipulationEnv):
     def _initialize_sim(self, xml_string=None):
         super()._initialize_sim(xml_string)
         self._badqacc_seen = 0
-        loaded_step = float(self.sim.model.opt.timestep)
-        if not np.isclose(loaded_step, self.model_timestep, rtol=1e-5, atol=0):
-            raise ValueError(
-                f"the loaded model's physics step is {loaded_step:.6g} s, this environment's "
-                f"{self.model_timestep:.6g} s: make the environment with physics_timestep_s={loaded_step:.6g} "
-                "(a recorded demo's env_kwargs, in its 'env_args' attribute, hold the step it was recorded with)"
-            )
+        # a recorded XML runs at the step it was recorded with (datasets keep their own physics)
+        self.model_timestep = check_physics_timestep(float(self.sim.model.opt.timestep), self.control_freq)
 
     def reset(self, seed: int | None = None):
         """

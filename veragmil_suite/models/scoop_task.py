@@ -64,7 +64,8 @@ def check_physics_timestep(timestep_s, control_freq: float) -> float:
             f"contact time constant), e.g. {PHYSICS_TIMESTEP_S!r} (1/240), got {timestep_s!r}"
         )
     substeps = 1.0 / (control_freq * timestep_s)
-    if abs(substeps - round(substeps)) > 1e-6:
+    # robosuite counts substeps as int(control period / step): a ratio just under a whole number would lose one
+    if abs(substeps - round(substeps)) > 1e-6 or int(substeps) != round(substeps):
         frequencies = [f"{1 / (timestep_s * k):g}" for k in range(1, 1000) if abs(1 / (timestep_s * k) % 1) < 1e-6]
         steps = [f"1/{control_freq * k:g}" for k in range(1, 1000) if 1 / (control_freq * k) <= limit]
         raise ValueError(

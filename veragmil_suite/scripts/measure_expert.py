@@ -122,8 +122,11 @@ def _physics_timestep(text: str) -> float:
 
 def _label(run: dict) -> str:
     """A --json run's name in --compare: its MuJoCo, sleep tolerance, physics step and solver overrides."""
+    from veragmil_suite.models.scoop_task import PHYSICS_TIMESTEP_S
+
     solver = "".join(f", {k}={v}" for k, v in (run.get("solver") or {}).items())
-    step = f", step 1/{1 / run['physics_timestep_s']:.0f} s" if run.get("physics_timestep_s") else ""
+    # runs written before the step was an argument ran at 1/240 s
+    step = f", step 1/{1 / run.get('physics_timestep_s', PHYSICS_TIMESTEP_S):.0f} s"
     return f"mujoco {run.get('mujoco', '?')}, sleep {run.get('sleep_tolerance') or 'off'}{step}{solver}"
 
 
@@ -175,6 +178,9 @@ def compare(paths: list[str]) -> str:
         cells = []
         for r in runs:
             eps = [e for e in r["episodes"] if e["food"] == food]
+            if not eps:
+                cells.append("not run")
+                continue
             load = np.array([e["grains_in_spoon"] for e in eps])
             times = [e["completion_time_s"] for e in eps if e["success"]]
             rate = sum(e["steps"] for e in eps) / sum(e["wall_s"] for e in eps) if "wall_s" in eps[0] else float("nan")
@@ -236,7 +242,7 @@ def main(argv: list[str] | None = None) -> int:
         type=_physics_timestep,
         default=PHYSICS_TIMESTEP_S,
         metavar="SECONDS",
-        help="the task's physics step, e.g. 1/160 (default 1/240; the pile is settled at it)",
+        help="the task's physics step, e.g. 1/200 (default 1/240; the pile is settled at it)",
     )
     p.add_argument("--json", default=None, help="also write every episode and the summary to this file")
     p.add_argument("--compare", nargs="+", metavar="JSON", help="print earlier --json runs side by side, run nothing")
