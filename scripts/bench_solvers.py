@@ -3,7 +3,11 @@ What one physics step of an awake pile costs under other MuJoCo settings than th
 kind and effort, the friction cone, and the convex-collision flags. The pile is settled as the task settles it and
 held still with sleeping off (every grain awake, as while the spoon is in it); each setting steps the same state.
 
-Only the cost is shown here: whether a setting keeps the scoop what it is needs whole expert episodes
+A second table takes the physics step itself: the pile settled at each step, then left at rest (robot still,
+sleeping off) for REST_S: the cost of a simulated second and how restless the pile stays (fastest and median grain
+speed at the end, over two piles; the task's sleep tolerance is 3 mm/s).
+
+Only cost and rest are shown here: whether a setting keeps the scoop what it is needs whole expert episodes
 (``python -m veragmil_suite.scripts.measure_expert --solver KEY=VALUE``, ``--physics-timestep``).
 
     python scripts/bench_solvers.py                       # rice
@@ -32,21 +36,60 @@ SETTINGS = (
     ("libccd instead of native CCD", {"disableflags": mujoco.mjtDisableBit.mjDSBL_NATIVECCD}),
 )
 COLLISION_TIMER = mujoco.mjtTimer.mjTIMER_POS_COLLISION
+# physics steps of the second table (s), and how long each pile rests before its speeds are read
+TIMESTEPS_S = (1 / 240, 1 / 200, 1 / 180, 1 / 160, 1 / 120)
+REST_S = 2.0
+REST_SEEDS = (0, 1)
 
 
-def bench_food(food: str, steps: int) -> list[dict]:
-    """Each SETTINGS row stepped ``steps`` physics steps from the same settled, awake pile."""
-    env = robosuite.make(
+def _awake_env(food: str, seed: int = 0, pile_variants: int = 1, **kwargs):
+    return robosuite.make(
         "ScoopGranular",
         robots="XArm7",
         food=food,
         has_renderer=False,
         has_offscreen_renderer=False,
         use_camera_obs=False,
-        pile_variants=1,
-        seed=0,
+        pile_variants=pile_variants,
+        seed=seed,
         sleep_tolerance=None,
+        **kwargs,
     )
+
+
+def bench_steps(food: str) -> list[dict]:
+    """Each TIMESTEPS_S: the pile settled at that step, at rest for REST_S; its cost per simulated second and its
+    grains' speeds at the end (each REST_SEEDS draws another pile and bowl place)."""
+    rows = []
+    for timestep_s in TIMESTEPS_S:
+        fastest, median, seconds = [], [], 0.0
+        for seed in REST_SEEDS:
+            env = _awake_env(food, seed=seed, pile_variants=4, physics_timestep_s=timestep_s)
+            env.reset()
+            action = np.zeros(env.action_dim)
+            steps = int(round(REST_S * env.control_freq))
+            t = time.perf_counter()
+            for _ in range(steps):
+                env.step(action)
+            seconds += time.perf_counter() - t
+            speed = np.linalg.norm(env.sim.data.qvel[env.grain_qvel_adr[:, None] + np.arange(3)], axis=1)
+            fastest.append(1000 * float(speed.max()))
+            median.append(1000 * float(np.median(speed)))
+            env.close()
+        rows.append(
+            dict(
+                label=f"1/{1 / timestep_s:.0f} s",
+                ms_per_sim_s=1000 * seconds / (REST_S * len(REST_SEEDS)),
+                fastest_mm_s=fastest,
+                median_mm_s=median,
+            )
+        )
+    return rows
+
+
+def bench_food(food: str, steps: int) -> list[dict]:
+    """Each SETTINGS row stepped ``steps`` physics steps from the same settled, awake pile."""
+    env = _awake_env(food)
     env.reset()
     model, data = env.sim.model._model, env.sim.data._data
     start = (data.qpos.copy(), data.qvel.copy(), data.qacc_warmstart.copy(), data.time)
@@ -95,6 +138,18 @@ def main(argv: list[str] | None = None) -> None:
             print(
                 f"{r['label']:<42} {r['ms']:>8.2f} {r['ms'] / base:>7.2f}x {r['collide_ms']:>8.2f} {r['contacts']:>8} "
                 f"{r['iterations']:>8} {r['fastest_grain_mm_s']:>4.1f} mm/s",
+                flush=True,
+            )
+        rows = bench_steps(food)
+        base = rows[0]["ms_per_sim_s"]
+        print(f"\n{food}: physics steps, the pile settled at each and at rest for {REST_S:g} s (sleeping off)")
+        print(f"{'step':<12} {'ms per simulated s':>19} {'vs 1/240':>9}   fastest grain (mm/s)   median grain (mm/s)")
+        for r in rows:
+            fastest = ", ".join(f"{v:.2f}" for v in r["fastest_mm_s"])
+            median = ", ".join(f"{v:.3f}" for v in r["median_mm_s"])
+            print(
+                f"{r['label']:<12} {r['ms_per_sim_s']:>19.0f} {base / r['ms_per_sim_s']:>8.2f}x   "
+                f"{fastest:<22} {median}",
                 flush=True,
             )
 

@@ -129,7 +129,8 @@ def test_benchmark_reports_how_much_of_an_episode_the_whole_pile_is_awake(capsys
     bench.main(["--foods", "pasta", "--scales", "1", "--steps", "3", "--episodes", "1"])
     out = capsys.readouterr().out
     header, _, row = out.split("Whole expert episodes")[1].strip().splitlines()[1:4]
-    assert header.split()[-2:] == ["pile", "up"]
+    assert header.split()[-5:] == ["pile", "up", "up", "time", "mujoco"]
     assert re.fullmatch(r"[01]/[01]", row.split()[6])
-    share = float(row.split()[-1].rstrip("%"))
-    assert 0 < share < 100
+    steps, time_share, mujoco_share = (float(cell.rstrip("%")) for cell in row.split()[-3:])
+    assert 0 < steps < 100 and 0 < time_share < 100 and 0 < mujoco_share <= 100
+    assert time_share > steps  # the steps with the whole pile awake are the dear ones

@@ -93,19 +93,23 @@ def make_env(food: str, n_grains: int | None = None, robot: str = "XArm7", sleep
 
 def expert_episodes(food: str, robot: str, sleep_tolerance: float | None, episodes: int) -> dict:
     """Whole scripted expert episodes (seeds 0..episodes-1; resets untimed): env steps/s, seconds per episode,
-    successes, each STEP_PARTS share of MuJoCo's step time, and the share of control steps that end with the whole
-    pile awake (the steps sleeping cannot make cheaper)."""
+    successes, each STEP_PARTS share of MuJoCo's step time, the share of control steps that end with the whole pile
+    awake (the steps sleeping cannot make cheaper) and of the wall time they take, and MuJoCo's share of the wall
+    time (the rest is robosuite's Python)."""
     from veragmil_suite.expert import ScriptedScooper
 
     env = make_env(food, robot=robot, sleep_tolerance=sleep_tolerance)
     expert = ScriptedScooper(env, "expert")
-    steps, seconds, successes, pile_awake_steps = 0, 0.0, 0, 0
+    steps, seconds, successes, pile_awake_steps, pile_awake_s = 0, 0.0, 0, 0, 0.0
     parts = dict.fromkeys([*STEP_PARTS, "step"], 0.0)
 
     def step(action):
-        nonlocal pile_awake_steps
+        nonlocal pile_awake_steps, pile_awake_s
+        start = time.perf_counter()
         out = env.step(action)
-        pile_awake_steps += bool(env.sim.data._data.body_awake[env.grain_body_ids].all())
+        if env.sim.data._data.body_awake[env.grain_body_ids].all():
+            pile_awake_steps += 1
+            pile_awake_s += time.perf_counter() - start
         return out
 
     timers = {**STEP_PARTS, "step": mujoco.mjtTimer.mjTIMER_STEP}
@@ -134,6 +138,8 @@ def expert_episodes(food: str, robot: str, sleep_tolerance: float | None, episod
         episode_s=seconds / episodes,
         successes=successes,
         pile_awake=pile_awake_steps / steps,
+        pile_awake_time=pile_awake_s / seconds,
+        mujoco=parts["step"] / seconds,
         **shares,
     )
 
@@ -228,11 +234,13 @@ def _bench_robot(
         return
     print(
         f"\nWhole expert episodes ({episodes} per food and setting; share of MuJoCo's step: collide/build/solve; "
-        "pile up: control steps ending with every grain awake, sleeping on)"
+        "pile up: control steps ending with every grain awake, sleeping on; up time: their share of the wall time; "
+        "mujoco: MuJoCo's step in the wall time, sleeping on)"
     )
-    columns = ("awake", "asleep", "gain", "vs Lift", "ep/min", "success", "awake %", "asleep %", "pile up")
+    columns = ("awake", "asleep", "gain", "vs Lift", "ep/min", "success", "awake %", "asleep %")
+    columns += ("pile up", "up time", "mujoco")
     header = f"{'food':<10}" + "".join(f" {c:>8}" for c in columns[:6])
-    header += f" {columns[6]:>14} {columns[7]:>14} {columns[8]:>8}"
+    header += f" {columns[6]:>14} {columns[7]:>14}" + "".join(f" {c:>8}" for c in columns[8:])
     print(header)
     print("-" * len(header))
     gains: dict[str, tuple[float, float]] = {}
@@ -246,7 +254,7 @@ def _bench_robot(
             f"{food:<10} {off['rate']:>8.1f} {on['rate']:>8.1f} {on['rate'] / off['rate']:>7.2f}x "
             f"{on['rate'] / lift_rate:>8.2f} {60 / on['episode_s']:>8.1f} "
             f"{off['successes']:>3}/{on['successes']:<4} {shares[0]:>14} {shares[1]:>14} "
-            f"{100 * on['pile_awake']:>7.0f}%",
+            f"{100 * on['pile_awake']:>7.0f}% {100 * on['pile_awake_time']:>7.0f}% {100 * on['mujoco']:>7.0f}%",
             flush=True,
         )
     if gains:
