@@ -170,7 +170,7 @@ def test_quickstart_end_to_end_records_trains_evaluates_and_prints_the_tables(tm
     (checkpoint,) = (out / "runs").glob("expert_bc_1demos_10steps/*/models/model_epoch_2.pth")
     summary = json.loads((out / "eval" / "results.json").read_text())
     agents = {e["agent"] for e in summary["episodes"]}
-    assert agents == {"expert BC", "expert operator", "pretrained BC 50k"}  # the shipped checkpoint beside
+    assert agents == {"expert BC", "expert operator", "pretrained DART BC 50k"}  # the shipped checkpoint beside
     assert {(e["agent"], e["food"]) for e in summary["episodes"]} == {(a, f) for a in agents for f in ("pasta", "peas")}
     for name in ("table.md", "table.csv", "episodes.csv", "success.png"):
         assert (out / "eval" / name).stat().st_size > 0

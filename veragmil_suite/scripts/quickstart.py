@@ -2,9 +2,9 @@
 veragmil-quickstart: the main job on a small default, headless.
 
 Records a few scripted demonstrations of each training food, trains robomimic's BC on them briefly, evaluates the
-checkpoint, the scripted expert itself and the shipped BC checkpoint trained at the study's size (30 demos per
-food, 50k gradient steps; models/checkpoints/README.md) on a seen food (rice) and an unseen one (peas), and prints
-the paper's tables. Every stage is one of our console programs; larger runs: veragmil-study (README).
+checkpoint, the scripted expert itself and the shipped BC checkpoint trained at the study's size (30 noise-injected
+demos per food, 50k gradient steps; models/checkpoints/README.md) on a seen food (rice) and an unseen one (peas),
+and prints the paper's tables. Every stage is one of our console programs; larger runs: veragmil-study (README).
 """
 
 from __future__ import annotations
@@ -16,9 +16,10 @@ from veragmil_suite.asset_paths import pretrained_checkpoint
 from veragmil_suite.pipeline import PipelineSettings
 from veragmil_suite.scripts.study import add_pipeline_arguments, run
 
-# BC trained by veragmil-study on 30 expert demos per training food for 50k gradient steps (models/checkpoints)
-PRETRAINED = "bc_expert_30demos_50k.pth"
-PRETRAINED_NAME = "pretrained BC 50k"
+# BC trained by veragmil-study on 30 noise-injected expert demos per training food for 50k gradient steps
+# (models/checkpoints)
+PRETRAINED = "bc_expert-dart_30demos_50k.pth"
+PRETRAINED_NAME = "pretrained DART BC 50k"
 
 
 def main(argv: list[str] | None = None) -> int:
