@@ -21,9 +21,8 @@ import time
 
 import mujoco
 import numpy as np
-import robosuite
 
-import veragmil_suite  # noqa: F401  (registers ScoopGranular)
+from veragmil_suite.bench import make_env  # every grain awake: its sleep_tolerance is None
 from veragmil_suite.foods import FOODS
 
 # (label, MuJoCo option attributes changed from the task's); the first row is the task's own
@@ -42,21 +41,6 @@ REST_S = 2.0
 REST_SEEDS = (0, 1)
 
 
-def _awake_env(food: str, seed: int = 0, pile_variants: int = 1, **kwargs):
-    return robosuite.make(
-        "ScoopGranular",
-        robots="XArm7",
-        food=food,
-        has_renderer=False,
-        has_offscreen_renderer=False,
-        use_camera_obs=False,
-        pile_variants=pile_variants,
-        seed=seed,
-        sleep_tolerance=None,
-        **kwargs,
-    )
-
-
 def bench_steps(food: str) -> list[dict]:
     """Each TIMESTEPS_S: the pile settled at that step, at rest for REST_S; its cost per simulated second and its
     grains' speeds at the end (each REST_SEEDS draws another pile and bowl place)."""
@@ -64,7 +48,7 @@ def bench_steps(food: str) -> list[dict]:
     for timestep_s in TIMESTEPS_S:
         fastest, median, seconds = [], [], 0.0
         for seed in REST_SEEDS:
-            env = _awake_env(food, seed=seed, pile_variants=4, physics_timestep_s=timestep_s)
+            env = make_env(food, seed=seed, pile_variants=4, physics_timestep_s=timestep_s)
             env.reset()
             action = np.zeros(env.action_dim)
             steps = int(round(REST_S * env.control_freq))
@@ -89,7 +73,7 @@ def bench_steps(food: str) -> list[dict]:
 
 def bench_food(food: str, steps: int) -> list[dict]:
     """Each SETTINGS row stepped ``steps`` physics steps from the same settled, awake pile."""
-    env = _awake_env(food)
+    env = make_env(food)
     env.reset()
     model, data = env.sim.model._model, env.sim.data._data
     start = (data.qpos.copy(), data.qvel.copy(), data.qacc_warmstart.copy(), data.time)

@@ -76,9 +76,11 @@ def _bare_rate(env, steps: int) -> float:
     return steps / (time.perf_counter() - start)
 
 
-def make_env(food: str, n_grains: int | None = None, robot: str = "XArm7", sleep_tolerance: float | None = None):
-    return robosuite.make(
-        "ScoopGranular",
+def make_env(
+    food: str, n_grains: int | None = None, robot: str = "XArm7", sleep_tolerance: float | None = None, **overrides
+):
+    """A headless ScoopGranular of one pile variant, seed 0; ``overrides`` replace or add any of its arguments."""
+    kwargs = dict(
         robots=robot,
         food=food,
         n_grains=n_grains,
@@ -89,6 +91,7 @@ def make_env(food: str, n_grains: int | None = None, robot: str = "XArm7", sleep
         seed=0,
         sleep_tolerance=sleep_tolerance,
     )
+    return robosuite.make("ScoopGranular", **{**kwargs, **overrides})
 
 
 def expert_episodes(food: str, robot: str, sleep_tolerance: float | None, episodes: int) -> dict:

@@ -835,7 +835,7 @@ class ScoopGranular(ManipulationEnv):
         ScoopTask), which must divide the control period; a model loaded from XML brings its own (_initialize_sim).
         """
         super().initialize_time(control_freq)
-        self.model_timestep = check_physics_timestep(self.physics_timestep_s, control_freq)
+        self.model_timestep = self.physics_timestep_s  # checked against control_freq in __init__
 
     def _initialize_sim(self, xml_string=None):
         super()._initialize_sim(xml_string)
