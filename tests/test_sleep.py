@@ -129,8 +129,19 @@ def test_benchmark_reports_how_much_of_an_episode_the_whole_pile_is_awake(capsys
     bench.main(["--foods", "pasta", "--scales", "1", "--steps", "3", "--episodes", "1"])
     out = capsys.readouterr().out
     header, _, row = out.split("Whole expert episodes")[1].strip().splitlines()[1:4]
-    assert header.split()[-5:] == ["pile", "up", "up", "time", "mujoco"]
+    assert header.split()[-6:] == ["pile", "up", "up", "time", "ceiling", "mujoco"]
     assert re.fullmatch(r"[01]/[01]", row.split()[6])
-    steps, time_share, mujoco_share = (float(cell.rstrip("%")) for cell in row.split()[-3:])
+    steps, time_share, ceiling, mujoco_share = (float(cell.rstrip("%x")) for cell in row.split()[-4:])
     assert 0 < steps < 100 and 0 < time_share < 100 and 0 < mujoco_share <= 100
     assert time_share > steps  # the steps with the whole pile awake are the dear ones
+    gain = float(row.split()[3].rstrip("x"))
+    assert ceiling >= gain
+    assert re.search(r"slowest training food over whole episodes: pasta .* sleeping's ceiling \d+\.\d\dx", out)
+
+
+def test_sleeping_ceiling_counts_only_the_steps_with_the_whole_pile_awake():
+    from veragmil_suite.bench import sleeping_ceiling
+
+    # off: 0.1 s a step; on: 0.05 s a step, half of it in steps with the pile awake (0.025 s a step)
+    assert sleeping_ceiling({"rate": 10.0}, {"rate": 20.0, "pile_awake_time": 0.5}) == pytest.approx(4.0)
+    assert sleeping_ceiling({"rate": 10.0}, {"rate": 20.0, "pile_awake_time": 0.0}) == float("inf")

@@ -147,6 +147,13 @@ def expert_episodes(food: str, robot: str, sleep_tolerance: float | None, episod
     )
 
 
+def sleeping_ceiling(off: dict, on: dict) -> float:
+    """The gain over ``off`` if every step of ``on`` without the whole pile awake cost nothing: with the pile awake a
+    step costs the same with sleeping on or off, so those steps bound what sleeping can give."""
+    pile_up_s_per_step = on["pile_awake_time"] / on["rate"]
+    return (1.0 / off["rate"]) / pile_up_s_per_step if pile_up_s_per_step > 0 else float("inf")
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--foods", default=",".join(FOODS), help="comma-separated foods (default: all)")
@@ -238,35 +245,38 @@ def _bench_robot(
     print(
         f"\nWhole expert episodes ({episodes} per food and setting; share of MuJoCo's step: collide/build/solve; "
         "pile up: control steps ending with every grain awake, sleeping on; up time: their share of the wall time; "
+        "ceiling: the gain if every other step cost nothing, all sleeping can give; "
         "mujoco: MuJoCo's step in the wall time, sleeping on)"
     )
     columns = ("awake", "asleep", "gain", "vs Lift", "ep/min", "success", "awake %", "asleep %")
-    columns += ("pile up", "up time", "mujoco")
+    columns += ("pile up", "up time", "ceiling", "mujoco")
     header = f"{'food':<10}" + "".join(f" {c:>8}" for c in columns[:6])
     header += f" {columns[6]:>14} {columns[7]:>14}" + "".join(f" {c:>8}" for c in columns[8:])
     print(header)
     print("-" * len(header))
-    gains: dict[str, tuple[float, float]] = {}
+    gains: dict[str, tuple[float, float, float]] = {}
     for food in foods:
         off = expert_episodes(food, robot, None, episodes)
         on = expert_episodes(food, robot, sleep_tolerance, episodes)
+        ceiling = sleeping_ceiling(off, on)
         if food in TRAINING_FOODS:
-            gains[food] = (off["rate"], on["rate"])
+            gains[food] = (off["rate"], on["rate"], ceiling)
         shares = ["/".join(f"{100 * r[k]:.0f}" for k in STEP_PARTS) for r in (off, on)]
         print(
             f"{food:<10} {off['rate']:>8.1f} {on['rate']:>8.1f} {on['rate'] / off['rate']:>7.2f}x "
             f"{on['rate'] / lift_rate:>8.2f} {60 / on['episode_s']:>8.1f} "
             f"{off['successes']:>3}/{on['successes']:<4} {shares[0]:>14} {shares[1]:>14} "
-            f"{100 * on['pile_awake']:>7.0f}% {100 * on['pile_awake_time']:>7.0f}% {100 * on['mujoco']:>7.0f}%",
+            f"{100 * on['pile_awake']:>7.0f}% {100 * on['pile_awake_time']:>7.0f}% {ceiling:>7.2f}x "
+            f"{100 * on['mujoco']:>7.0f}%",
             flush=True,
         )
     if gains:
         slowest = min(gains, key=lambda f: gains[f][0])
-        off, on = gains[slowest]
+        off, on, ceiling = gains[slowest]
         print(
             f"\nslowest training food over whole episodes: {slowest} {off:.1f} -> {on:.1f} steps/s with sleeping, "
             f"{on / off:.2f}x (must: {EPISODE_MUST_GAIN:.1f}x, aim: {EPISODE_AIM_GAIN:.0f}x); "
-            f"{off / lift_rate:.2f} -> {on / lift_rate:.2f}x Lift"
+            f"{off / lift_rate:.2f} -> {on / lift_rate:.2f}x Lift; sleeping's ceiling {ceiling:.2f}x"
         )
 
 
