@@ -145,3 +145,20 @@ def test_sleeping_ceiling_counts_only_the_steps_with_the_whole_pile_awake():
     # off: 0.1 s a step; on: 0.05 s a step, half of it in steps with the pile awake (0.025 s a step)
     assert sleeping_ceiling({"rate": 10.0}, {"rate": 20.0, "pile_awake_time": 0.5}) == pytest.approx(4.0)
     assert sleeping_ceiling({"rate": 10.0}, {"rate": 20.0, "pile_awake_time": 0.0}) == float("inf")
+
+
+def test_pile_up_bench_times_the_same_steps_with_sleeping_on_and_off(capsys):
+    """scripts/bench_pile_up.py (the premise of the ceiling column): one row per seed, with the steps that end with
+    the whole pile awake counted and timed in both runs, and a clear error for a food it does not know."""
+    import runpy
+    from pathlib import Path
+
+    script = runpy.run_path(str(Path(__file__).parents[1] / "scripts" / "bench_pile_up.py"), run_name="bench_pile_up")
+    script["main"](["--foods", "pasta", "--seeds", "1"])
+    row = capsys.readouterr().out.strip().splitlines()[-1].split()
+    assert row[:2] == ["pasta", "0"]
+    pile_up, times = int(row[3]), [float(cell) for cell in row[4:8]]
+    assert pile_up > 0 and all(t > 0 for t in times)
+    with pytest.raises(SystemExit):
+        script["main"](["--foods", "soup"])
+    assert "unknown food(s) soup; accepted foods: rice" in capsys.readouterr().err
