@@ -50,6 +50,24 @@ def host() -> dict:
     return dict(cpu=model, cores=os.cpu_count(), os=platform.platform(), python=platform.python_version())
 
 
+def own_timings(timings: dict[str, float], agents: dict[str, str]) -> dict[str, float]:
+    """The pieces behind ``agents``: their training runs, the recording of each dataset they trained on, and the
+    evaluation. A study's timings.json keeps every piece its output directory ever ran, most of them another
+    evaluation's."""
+    # a checkpoint lies at <runs>/<run name>/<timestamp>/models/<file>; an operator ("expert:expert") is no path
+    runs = {Path(spec).parents[2].name for spec in agents.values() if Path(spec).suffix == ".pth"}
+    kept = {}
+    for key, seconds in timings.items():
+        kind, _, name = key.partition(" ")
+        if (
+            key == "evaluate"
+            or (kind == "train" and name in runs)
+            or (kind == "record" and any(run.startswith(f"{name}_") for run in runs))
+        ):
+            kept[key] = seconds
+    return kept
+
+
 def publish(study_dir: Path, dest: Path, command: str) -> list[str]:
     """Copies the study's eval outputs and timings to ``dest`` and writes RUN.md; returns the files written."""
     eval_dir = study_dir / "eval"
@@ -64,6 +82,7 @@ def publish(study_dir: Path, dest: Path, command: str) -> list[str]:
             written.append(name)
     timings = json.loads((study_dir / "timings.json").read_text()) if (study_dir / "timings.json").is_file() else {}
     config = json.loads((eval_dir / "results.json").read_text())["config"]
+    timings = own_timings(timings, config.get("agents", {}))
     lines = [
         f"# {dest.name}",
         "",
@@ -80,7 +99,8 @@ def publish(study_dir: Path, dest: Path, command: str) -> list[str]:
         "Evaluation: "
         + ", ".join(f"{k} {config[k]}" for k in ("episodes", "seed", "horizon", "success_hold_s") if k in config),
         "",
-        "Wall times (s, this machine, the pieces this folder's runs performed; skipped pieces keep their first time):",
+        "Wall times (s, this machine, the pieces behind this folder's models: their training, the recording of their"
+        " data, the evaluation; a piece a study skipped keeps the time of the run that performed it):",
         "",
         "| piece | seconds |",
         "|---|---:|",

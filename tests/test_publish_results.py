@@ -1,0 +1,60 @@
+"""scripts/publish_results.py: what a results/ folder records of the study that made it."""
+
+import json
+import runpy
+from pathlib import Path
+
+import pytest
+
+SCRIPT = Path(__file__).parents[1] / "scripts" / "publish_results.py"
+
+
+@pytest.fixture(scope="module")
+def publish_results():
+    return runpy.run_path(str(SCRIPT), run_name="publish_results")
+
+
+def _study(tmp_path: Path, agents: dict[str, str], timings: dict[str, float]) -> Path:
+    study = tmp_path / "study"
+    (study / "eval").mkdir(parents=True)
+    config = {"agents": agents, "episodes": 20, "seed": 100000, "versions": {"mujoco": "3.8.1"}}
+    (study / "eval" / "results.json").write_text(json.dumps({"config": config, "summary": [], "episodes": []}))
+    (study / "eval" / "table.md").write_text("| food |\n")
+    (study / "timings.json").write_text(json.dumps(timings))
+    return study
+
+
+def test_run_md_lists_only_the_pieces_behind_its_models(publish_results, tmp_path):
+    agents = {
+        "expert operator": "expert:expert",
+        "expert BC seed 4": "runs/grid/runs/expert_bc_30demos_50000steps_seed4/20261125/models/model_epoch_100.pth",
+        "expert-dart BCQ": "runs/grid/runs/expert-dart_bcq_30demos_50000steps/20261124/models/model_epoch_100.pth",
+    }
+    timings = {
+        "record expert": 300.0,
+        "record expert-dart": 310.0,
+        "record spacemouse": 320.0,
+        "train expert_bc_30demos_50000steps_seed4": 600.0,
+        "train expert_bc_30demos_50000steps": 601.0,  # another seed, another evaluation's
+        "train expert-dart_bcq_30demos_50000steps": 700.0,
+        "train spacemouse_bcq_30demos_50000steps": 701.0,
+        "evaluate": 599.8,
+    }
+    dest = tmp_path / "results" / "four_seeds"
+    written = publish_results["publish"](_study(tmp_path, agents, timings), dest, "veragmil-study --output-dir x")
+    assert written == ["table.md", "results.json", "RUN.md"]
+    run_md = (dest / "RUN.md").read_text()
+    table = run_md.split("|---|---:|\n")[1].split("\n\n")[0]
+    assert [row.split(" | ")[0].removeprefix("| ") for row in table.splitlines()] == [
+        "record expert",
+        "record expert-dart",
+        "train expert_bc_30demos_50000steps_seed4",
+        "train expert-dart_bcq_30demos_50000steps",
+        "evaluate",
+    ]
+    assert "veragmil-study --output-dir x" in run_md and "mujoco 3.8.1" in run_md
+
+
+def test_an_unfinished_study_is_refused_by_name(publish_results, tmp_path):
+    with pytest.raises(SystemExit, match="results.json not found"):
+        publish_results["publish"](tmp_path / "nothing", tmp_path / "dest", "cmd")
