@@ -1,0 +1,84 @@
+"""scripts/pool_results.py: agents of separate evaluations pooled into one, their training seeds into seed tables."""
+
+import json
+import runpy
+from pathlib import Path
+
+import pytest
+
+from veragmil_suite.evaluation import EpisodeRecord
+
+SCRIPT = Path(__file__).parents[1] / "scripts" / "pool_results.py"
+FOODS = ["rice", "pasta"]
+
+
+@pytest.fixture(scope="module")
+def pool_results():
+    return runpy.run_path(str(SCRIPT), run_name="pool_results")
+
+
+def _episode(agent: str, food: str, episode: int, success: bool) -> dict:
+    return EpisodeRecord(
+        agent=agent, food=food, episode=episode, seed=100000 + episode, success=success, grains_spilled=0,
+        spilled_volume_cm3=0.0, completion_time_s=8.0 if success else 20.0, steps=200, end_reason="success"
+        if success else "horizon", physics_error="", grains_in_spoon=30, spill_fraction=0.0,
+        stage="held" if success else "loaded spoon", peak_grains_in_spoon=60, wall_s=5.0,
+    ).to_dict()  # fmt: skip
+
+
+def _evaluation(path: Path, wins: dict[str, int], **config) -> Path:
+    """A results.json whose agents each win their first ``wins[agent]`` of 4 episodes per food."""
+    settings = dict(foods=FOODS, episodes=4, seed=100000, horizon=400, robot="XArm7", success_hold_s=1.0,
+                    env_kwargs={}, versions={"mujoco": "3.8.1"})  # fmt: skip
+    settings.update(config, agents={a: f"runs/grid/runs/{a.replace(' ', '_')}/t/models/m.pth" for a in wins})
+    episodes = [_episode(a, f, i, i < n) for a, n in wins.items() for f in FOODS for i in range(4)]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(dict(config=settings, summary=[], episodes=episodes)))
+    return path
+
+
+def test_agents_of_two_evaluations_pool_into_one_with_seed_tables(pool_results, tmp_path):
+    old = _evaluation(tmp_path / "old.json", {"expert BC seed 1": 4, "expert BC seed 2": 2, "expert BCQ seed 1": 0})
+    new = _evaluation(tmp_path / "new.json", {"expert BC": 1})
+    out = tmp_path / "pooled"
+    pool_results["main"](
+        [
+            str(out),
+            "--agent",
+            f"{old}:expert BC seed 1",
+            "--agent",
+            f"{old}:expert BC seed 2",
+            "--agent",
+            f"expert BC seed 4={new}:expert BC",
+        ]  # fmt: skip
+    )
+    results = json.loads((out / "results.json").read_text())
+    assert list(results["config"]["agents"]) == ["expert BC seed 1", "expert BC seed 2", "expert BC seed 4"]
+    assert results["config"]["pooled_from"]["expert BC seed 4"] == f"{new}:expert BC"
+    rates = {(s["agent"], s["food"]): s["success_rate"] for s in results["summary"]}
+    assert rates[("expert BC seed 4", "rice")] == 0.25 and rates[("expert BC seed 2", "pasta")] == 0.5
+    assert not any(e["agent"].startswith("expert BCQ") for e in results["episodes"])
+    # the three seeds pooled: (4 + 2 + 1) wins of 12 episodes per food
+    pooled = {s["food"]: s for s in json.loads((out / "seeds" / "results.json").read_text())["summary"]}
+    assert pooled["rice"]["agent"] == "expert BC" and pooled["rice"]["successes"] == 7
+    assert pooled["rice"]["episodes"] == 12
+    assert "| expert BC | 1, 2, 4 |" in (out / "seeds.md").read_text()
+
+
+def test_evaluations_that_differ_in_what_decides_an_episode_are_refused(pool_results, tmp_path):
+    old = _evaluation(tmp_path / "old.json", {"expert BC seed 1": 4})
+    new = _evaluation(tmp_path / "new.json", {"expert BC": 1}, horizon=300)
+    with pytest.raises(SystemExit, match="differ in 'horizon' \\(300 against 400\\)"):
+        pool_results["pool"]([("a", old, "expert BC seed 1"), ("b", new, "expert BC")])
+
+
+def test_an_unknown_agent_is_refused_with_the_agents_there(pool_results, tmp_path):
+    old = _evaluation(tmp_path / "old.json", {"expert BC seed 1": 4})
+    with pytest.raises(SystemExit, match="has no agent 'expert BCQ'; it has \\['expert BC seed 1'\\]"):
+        pool_results["pool"]([("a", old, "expert BCQ")])
+
+
+def test_a_malformed_agent_argument_names_the_expected_form(pool_results, tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        pool_results["main"]([str(tmp_path), "--agent", "expert BC seed 4=results.json"])
+    assert "expected NAME=RESULTS_JSON:AGENT" in capsys.readouterr().err
