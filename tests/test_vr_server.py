@@ -235,6 +235,21 @@ def test_a_failing_handler_is_counted_not_fatal():
         srv.stop()
 
 
+def test_a_stalled_event_loop_does_not_drop_a_live_page():
+    """The simulation holding the GIL longer than the heartbeat timeout (here: the server's own loop blocked)
+    leaves the page's answers unread; that silence is the server's, so the page is not taken for half-open."""
+    srv = VRServer(VRServerOptions(port=0, heartbeat_timeout=2.0)).start()  # two pings' time
+    try:
+        c = Client(srv.url).connect()
+        srv._loop.call_soon_threadsafe(time.sleep, 3.5)
+        time.sleep(5.5)
+        assert srv.stats()["heartbeat_timeouts"] == 0
+        assert srv.connected and c.wait_closed(timeout=0.5) is None
+        c.close()
+    finally:
+        srv.stop()
+
+
 def test_stop_frees_the_port():
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

@@ -63,6 +63,9 @@ REQUEST_TIMEOUT_S = 10.0
 # seconds a WebSocket client may stay silent (it answers the server's pings every PING_INTERVAL_S) before the
 # connection is taken for half-open (Wi-Fi gone without a FIN) and dropped, so that a reconnection finds a free slot
 HEARTBEAT_TIMEOUT_S = 5.0
+# seconds past its 0.1 s wait after which the send loop takes its own event loop to have been stalled (the GIL held
+# by the simulation, a starved CPU): the client's messages of that time lie unread, so its silence is not counted
+LOOP_STALL_S = 1.0
 _HOST_RE = re.compile(r"[A-Za-z0-9.\-\[\]:]+")  # a Host header fit to be echoed into the page's CSP
 
 # close codes in the application range (4000-4999)
@@ -577,7 +580,8 @@ class VRServer:
 
     async def _send_loop(self, ws: web.WebSocketResponse, order: dict, transport) -> None:
         """Send the newest frame and status whenever there is one, and a ping every second; drop a client silent
-        for the heartbeat timeout (``order["heard"]``: when it last sent anything)."""
+        for the heartbeat timeout (``order["heard"]``: when it last sent anything, or when this loop last came back from
+        a stall, whose messages were not read)."""
         with self._publish_lock:
             published_before = self._frame[0] if self._frame else 0
         last_frame = 0  # the newest frame goes out at once
@@ -585,10 +589,13 @@ class VRServer:
         next_ping = time.monotonic()
         try:
             while not ws.closed:
+                waited_from = time.monotonic()
                 try:
                     await asyncio.wait_for(self._wake.wait(), timeout=0.1)
                 except asyncio.TimeoutError:
                     pass
+                if time.monotonic() - waited_from > LOOP_STALL_S:
+                    order["heard"] = max(order["heard"], time.monotonic())
                 self._wake.clear()
                 with self._publish_lock:
                     frame, status = self._frame, self._status
