@@ -18,6 +18,7 @@ import argparse
 import json
 import re
 import sys
+from collections import Counter
 from dataclasses import replace
 from pathlib import Path
 
@@ -102,8 +103,7 @@ def main(argv: list[str] | None = None) -> int:
     result, points = pool(args.agent)
     for path in result.write(str(args.output_dir)).values():
         print(path)
-    recipes = {p["recipe"] for p in points}
-    if any(sum(p["recipe"] == r for p in points) > 1 for r in recipes):
+    if any(n > 1 for n in Counter(p["recipe"] for p in points).values()):
         write_seed_tables(result, points, args.output_dir)
         print(args.output_dir / "seeds.md")
     return 0

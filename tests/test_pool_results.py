@@ -50,7 +50,7 @@ def test_agents_of_two_evaluations_pool_into_one_with_seed_tables(pool_results, 
             f"{old}:expert BC seed 2",
             "--agent",
             f"expert BC seed 4={new}:expert BC",
-        ]  # fmt: skip
+        ]
     )
     results = json.loads((out / "results.json").read_text())
     assert list(results["config"]["agents"]) == ["expert BC seed 1", "expert BC seed 2", "expert BC seed 4"]

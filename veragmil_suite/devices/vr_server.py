@@ -594,8 +594,9 @@ class VRServer:
                     await asyncio.wait_for(self._wake.wait(), timeout=0.1)
                 except asyncio.TimeoutError:
                     pass
-                if time.monotonic() - waited_from > LOOP_STALL_S:
-                    order["heard"] = max(order["heard"], time.monotonic())
+                woke = time.monotonic()
+                if woke - waited_from > LOOP_STALL_S:
+                    order["heard"] = max(order["heard"], woke)
                 self._wake.clear()
                 with self._publish_lock:
                     frame, status = self._frame, self._status
