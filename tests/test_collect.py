@@ -221,6 +221,10 @@ class FakeHeadset:
     def close(self, farewell=None):
         self.farewell = farewell
 
+    def stats(self):
+        # the page reconnected once after being dropped as silent
+        return {"server": {"connections": 2, "malformed": 0, "heartbeat_timeouts": 1}}
+
 
 def test_keep_and_discard_from_the_device(tmp_path, monkeypatch, capsys):
     out = tmp_path / "vr.hdf5"
@@ -236,6 +240,7 @@ def test_keep_and_discard_from_the_device(tmp_path, monkeypatch, capsys):
     assert collect.main(argv) == 0
     printed = capsys.readouterr().out
     assert "discarded" in printed and "saved as demo_0" in printed
+    assert "vr server: connections 2, heartbeat_timeouts 1\n" in printed  # the non-zero counters, after the fact
     with open_dataset(out) as f:
         data = f["data"]
         assert list(data.keys()) == ["demo_0"]

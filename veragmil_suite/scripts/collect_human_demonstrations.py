@@ -275,6 +275,14 @@ class TeleopOperator:
         elif hasattr(self.device, "close"):
             self.device.close()
 
+    def connection_line(self) -> str | None:
+        """VR: the server's non-zero counters (vr_server.COUNTERS), so that a session whose page reconnected or was
+        dropped as silent says so after the fact."""
+        if not hasattr(self.device, "stats"):
+            return None
+        counts = [f"{name} {n}" for name, n in self.device.stats()["server"].items() if n]
+        return "vr server: " + (", ".join(counts) or "no page connected")
+
 
 def make_operator(args, env):
     """The operator for ``--device``; a clear SystemExit when its hardware or display is missing."""
@@ -571,6 +579,8 @@ def main(argv: list[str] | None = None) -> int:
         if teleop is not None:
             saved = len(writer.written)
             teleop.close(farewell=f"{saved} demo{'' if saved == 1 else 's'} saved to {args.output}")
+            if not args.quiet and (line := teleop.connection_line()) is not None:
+                print(line)
         elif operator is not None:
             operator.close()
         if env is not None:
