@@ -34,11 +34,10 @@ from veragmil_suite.humanoid import check_robot
 from veragmil_suite.models.scoop_task import GRAIN_SLEEP_TOLERANCE, check_sleep_tolerance
 
 REAL_TIME_STEPS_PER_S = 20.0  # the default 20 Hz control rate
-# the speed issue's goals with sleeping: at rest 0.6x Lift; whole expert episodes of the slowest training food 1.5x
-# (aim 3x) the rate without
+# the speed issue's goals: at rest, asleep, 0.6x Lift; whole expert episodes of the slowest training food 1.5x (aim
+# 3x) the rate of the task as the issue found it, which scripts/bench_against.py measures (this benchmark's gain is
+# sleeping's alone, against today's code with sleeping off)
 REST_MUST_VS_LIFT = 0.6
-EPISODE_MUST_GAIN = 1.5
-EPISODE_AIM_GAIN = 3.0
 # control steps a settled pile is given to fall asleep (within 10 at GRAIN_SLEEP_TOLERANCE, 40 at 1e-3)
 REST_WARMUP_STEPS = 40
 # MuJoCo's timers of a step's parts: contacts found (broad and narrow phase), constraints built, constraints solved
@@ -276,7 +275,7 @@ def _bench_robot(
         off, on, ceiling = gains[slowest]
         print(
             f"\nslowest training food over whole episodes: {slowest} {off:.1f} -> {on:.1f} steps/s with sleeping, "
-            f"{on / off:.2f}x (must: {EPISODE_MUST_GAIN:.1f}x, aim: {EPISODE_AIM_GAIN:.0f}x); "
+            f"{on / off:.2f}x (the goal, 1.5x the task as the speed issue found it: scripts/bench_against.py); "
             f"{off / lift_rate:.2f} -> {on / lift_rate:.2f}x Lift; sleeping's ceiling {ceiling:.2f}x"
         )
 
