@@ -116,6 +116,10 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     if not (args.base / "veragmil_suite" / "__init__.py").is_file():
         parser.error(f"--base {args.base} holds no veragmil_suite package (a checkout's top level is expected)")
+    from veragmil_suite.foods import FOODS
+
+    if args.food not in FOODS:
+        parser.error(f"unknown food {args.food!r}; accepted foods: {', '.join(FOODS)}")
     if args.episodes < 1 or args.rounds < 1:
         parser.error(f"--episodes and --rounds must be at least 1, got {args.episodes} and {args.rounds}")
 

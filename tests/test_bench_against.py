@@ -33,3 +33,9 @@ def test_a_base_without_the_package_is_refused_by_name(bench_against, tmp_path, 
     with pytest.raises(SystemExit):
         bench_against["main"](["--base", str(tmp_path)])
     assert f"--base {tmp_path} holds no veragmil_suite package" in capsys.readouterr().err
+
+
+def test_an_unknown_food_is_refused_naming_the_accepted_ones(bench_against, capsys):
+    with pytest.raises(SystemExit):
+        bench_against["main"](["--base", str(ROOT), "--food", "caviar"])
+    assert "unknown food 'caviar'; accepted foods: rice" in capsys.readouterr().err
