@@ -34,22 +34,16 @@ def _child(food: str, episodes: int, lift_steps: int, sleep_off: bool) -> dict:
     import time
 
     import mujoco
-    import numpy as np
     import robosuite
 
     import veragmil_suite
+    from veragmil_suite.bench import _env_rate  # the same in both checkouts: steps/s held still, after one step
     from veragmil_suite.episode import run_until_done
     from veragmil_suite.expert import ScriptedScooper
 
     headless = dict(has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False)
     lift = robosuite.make("Lift", robots="XArm7", **headless)
-    lift.reset()
-    zero = np.zeros(lift.action_dim)
-    lift.step(zero)
-    start = time.perf_counter()
-    for _ in range(lift_steps):
-        lift.step(zero)
-    lift_rate = lift_steps / (time.perf_counter() - start)
+    lift_rate = _env_rate(lift, lift_steps)
     lift.close()
 
     kwargs = dict(robots="XArm7", food=food, pile_variants=1, seed=0, **headless)
