@@ -16,6 +16,7 @@ from veragmil_suite.environments.scoop import POST_SCOOP_EEF_ROT, PRE_SCOOP_EEF_
 from veragmil_suite.foods import FOODS
 from veragmil_suite.kinematics import solve_pose_ik
 from veragmil_suite.models.bowl import DEFAULT_BOWL_SHAPE
+from veragmil_suite.models.scoop_task import PHYSICS_SOLVER_OPTIONS
 from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
 from veragmil_suite.robomimic_obs import model_xml
 
@@ -387,7 +388,7 @@ def test_physics_solver_options_update_the_defaults_in_the_scene_too():
     opt = env.sim.model.opt
     assert opt.iterations == 50  # the option given...
     assert opt.solver == mujoco.mjtSolver.mjSOL_CG and opt.cone == mujoco.mjtCone.mjCONE_ELLIPTIC  # ...the rest kept
-    assert opt.impratio == 1.0
+    assert opt.impratio == float(PHYSICS_SOLVER_OPTIONS[env.physics]["impratio"])
     env.close()
 
 

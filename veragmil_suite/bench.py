@@ -29,7 +29,7 @@ import robosuite
 
 import veragmil_suite  # noqa: F401  (registers ScoopGranular)
 from veragmil_suite.episode import run_until_done
-from veragmil_suite.foods import FOODS, TRAINING_FOODS
+from veragmil_suite.foods import DEFAULT_PHYSICS, FOODS, TRAINING_FOODS
 from veragmil_suite.humanoid import check_robot
 from veragmil_suite.models.scoop_task import GRAIN_SLEEP_TOLERANCE, check_sleep_tolerance
 
@@ -216,7 +216,7 @@ def _bench_robot(
     at_rest: dict[str, float] = {}
     for food in foods:
         for scale in scales:
-            n = max(1, int(round(FOODS[food].default_grains * scale)))
+            n = max(1, int(round(FOODS[food].grain(DEFAULT_PHYSICS).default_grains * scale)))
             env = make_env(food, n, robot)
             awake = _env_rate(env, steps, warmup=REST_WARMUP_STEPS)
             contacts = env.sim.data.ncon

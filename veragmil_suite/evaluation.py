@@ -31,6 +31,7 @@ import os
 import time
 import traceback
 from collections.abc import Callable
+from dataclasses import MISSING as MISSING_FIELD
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
@@ -78,6 +79,8 @@ class EpisodeRecord:
     stage: str
     peak_grains_in_spoon: int | None  # None: a recorded demo (its steps' loads are not stored)
     wall_s: float
+    spilled_mass_g: float = math.nan  # NaN: recorded before masses were
+    spoon_mass_g: float = math.nan
 
     @classmethod
     def columns(cls) -> tuple[str, ...]:
@@ -90,7 +93,8 @@ class EpisodeRecord:
     @classmethod
     def from_dict(cls, values: dict) -> EpisodeRecord:
         """The record a to_dict gave (read back from the journal); KeyError names a missing field."""
-        return cls(**{name: values[name] for name in cls.columns()})
+        optional = {f.name for f in fields(cls) if f.default is not MISSING_FIELD}
+        return cls(**{name: values[name] for name in cls.columns() if name in values or name not in optional})
 
 
 class EvaluationError(RuntimeError):
@@ -316,6 +320,8 @@ def run_episode(task: EpisodeTask) -> EpisodeRecord:
         stage=metrics["stage"],
         peak_grains_in_spoon=end.peak_grains_in_spoon,
         wall_s=time.perf_counter() - start,
+        spilled_mass_g=metrics["spilled_mass_g"],
+        spoon_mass_g=metrics["spoon_mass_g"],
     )
 
 
@@ -406,6 +412,8 @@ def dataset_episodes(name: str, path: str, foods: list[str]) -> list[EpisodeReco
                     stage=_text(a.get("stage", MISSING)),
                     peak_grains_in_spoon=None,
                     wall_s=0.0,
+                    spilled_mass_g=float(a.get("spilled_mass_g", math.nan)),
+                    spoon_mass_g=float(a.get("spoon_mass_g", math.nan)),
                 )
             )
     return out
@@ -452,6 +460,8 @@ def summarize(episodes: list[EpisodeRecord]) -> dict[tuple[str, str], dict]:
             grains_spilled_mean=float(spilled.mean()),
             grains_spilled_std=float(spilled.std()),
             spilled_volume_cm3_mean=float(np.mean([e.spilled_volume_cm3 for e in rows])),
+            spilled_mass_g_mean=float(np.mean([e.spilled_mass_g for e in rows])),
+            spoon_mass_g_mean=float(np.mean([e.spoon_mass_g for e in rows])),
             completion_time_s_mean=float(times.mean()) if ok else math.nan,
             completion_time_s_std=float(times.std()) if ok else math.nan,
             physics_errors=sum(bool(e.physics_error) for e in rows),
@@ -526,6 +536,8 @@ def table_rows(summary: dict, agents: list[str], foods: list[str]) -> dict[str, 
             for a in agents:
                 row[f"{a} spilled"] = s[a]["grains_spilled_mean"] if s[a] else math.nan
                 row[f"{a} spilled std"] = s[a]["grains_spilled_std"] if s[a] else math.nan
+                row[f"{a} spilled g"] = s[a].get("spilled_mass_g_mean", math.nan) if s[a] else math.nan
+                row[f"{a} carried g"] = s[a].get("spoon_mass_g_mean", math.nan) if s[a] else math.nan
                 row[f"{a} time"] = s[a]["completion_time_s_mean"] if s[a] else math.nan
             table3.append(row)
         table2.append(_average_row(table2, label, group, f"{label} average"))
@@ -584,23 +596,26 @@ def markdown_tables(summary: dict, agents: list[str], foods: list[str]) -> str:
         lines.append(f"| {food} | " + " | ".join(_rate_cell(row, a) for a in agents) + " |")
     lines += [
         "",
-        "Table III: spillage (pieces, mean ± std over all episodes) and completion time (s, mean over successes)",
+        "Table III: spillage (pieces, mean ± std over all episodes; grams, mean), food carried at the end (g, mean)"
+        " and completion time (s, mean over successes)",
         "",
-        "| food | " + " | ".join(f"{a} spillage | {a} time (s)" for a in agents) + " |",
-        "|---|" + "---:|---:|" * len(agents),
+        "| food | "
+        + " | ".join(f"{a} spillage | {a} spilled (g) | {a} carried (g) | {a} time (s)" for a in agents)
+        + " |",
+        "|---|" + "---:|---:|---:|---:|" * len(agents),
     ]
     group = None
     for row in tables["table3"]:
         if row["group"] != group and row["group"] != "all":
             group = row["group"]
-            lines.append(f"| **{group}** |" + " | |" * len(agents))
+            lines.append(f"| **{group}** |" + " | | | |" * len(agents))
         is_food = row["food"] in foods
         cells = []
         for a in agents:
             spilled = _fmt(row[f"{a} spilled"])
             if is_food and spilled != MISSING:
                 spilled += f" ± {_fmt(row[f'{a} spilled std'])}"
-            cells += [spilled, _fmt(row[f"{a} time"])]
+            cells += [spilled, _fmt(row[f"{a} spilled g"], 2), _fmt(row[f"{a} carried g"], 2), _fmt(row[f"{a} time"])]
         lines.append(f"| {row['food'] if is_food else '*' + row['food'] + '*'} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
@@ -610,7 +625,11 @@ def csv_tables(summary: dict, agents: list[str], foods: list[str]) -> str:
     tables = table_rows(summary, agents, foods)
     columns = ["group", "food"]
     columns += [f"{a} {m}" for a in agents for m in ("success %", "success % ci95 low", "success % ci95 high")]
-    columns += [f"{a} {m}" for a in agents for m in ("spilled pieces mean", "spilled pieces std", "time s mean")]
+    columns += [
+        f"{a} {m}"
+        for a in agents
+        for m in ("spilled pieces mean", "spilled pieces std", "spilled g mean", "carried g mean", "time s mean")
+    ]
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(columns)
@@ -621,6 +640,7 @@ def csv_tables(summary: dict, agents: list[str], foods: list[str]) -> str:
             values += [_csv_number(r2[a]), _csv_number(low), _csv_number(high)]
         for a in agents:
             values += [_csv_number(r3[f"{a} spilled"]), _csv_number(r3[f"{a} spilled std"])]
+            values += [_csv_number(r3[f"{a} spilled g"]), _csv_number(r3[f"{a} carried g"])]
             values += [_csv_number(r3[f"{a} time"])]
         writer.writerow(values)
     return buf.getvalue()

@@ -1,27 +1,35 @@
 """The food catalog: every physical constant of a granular food lives here, and only here.
 
-The seven foods are Table I of the VERAGMIL paper (shape, size range, friction, restitution, density). Each is
-mapped to MuJoCo geometry that keeps contacts cheap and stable:
+Each food carries two grain models and the measurements they answer to:
 
-==========  ============  ===================================================================
-food        Table I shape MuJoCo geometry (per grain)
-==========  ============  ===================================================================
-rice        elongated     two overlapping spheres (radius ``aspect[0]`` * size / 2) spanning ``size``: sphere
-                          contacts are analytic, 10x cheaper than ellipsoids; capsules never came to rest
-buckwheat   triangular    compound of three spheres in a triangle (a rounded triangular seed)
-barley      oval          two overlapping spheres, like rice but plumper
-pasta       cylindrical   capsule (a short tube seen from the outside)
-peas        spherical     sphere of diameter = size
-beans       oval          ellipsoid
-flakes      irregular     compound of two flattened ellipsoids at a slant (a curled flake)
-==========  ============  ===================================================================
+- ``table1``: Table I of the VERAGMIL paper (shape, size range, friction, restitution, density) mapped to cheap MuJoCo
+  geometry, as every result before the calibration was made (``physics="table1"``).
+- ``calibrated``: grains that heap, pack and weigh like the real food (``physics="calibrated"``, the default): real
+  dimensions, a density that gives the measured grain mass, measured seed friction, rolling and torsional friction
+  (condim 6) and a contact margin that stops soft contacts over-packing. ``python -m veragmil_suite.calibration``
+  measures both against ``reference``.
+- ``reference``: published measurements (angle of repose, bulk density, grain mass and dimensions), each with its
+  source; a missing source is ``None`` and the benchmark says so.
 
-``size`` is the longest dimension in metres, drawn uniformly from Table I's range for every grain. Mass comes
-from the geometry's volume times density (MuJoCo integrates it from ``density``). Sliding friction is Table I's
-coefficient. Restitution ``e`` becomes contact damping: a MuJoCo contact is a damped spring, and a damped
-oscillator that rebounds with coefficient ``e`` has damping ratio ``zeta = -ln e / sqrt(pi^2 + ln^2 e)``; with
-``solref = (CONTACT_TIMECONST_S, zeta)`` (a 0.02 s time constant) this reproduced e = 0.10/0.15/0.20 as
-0.10/0.17/0.21 at a 2 ms step; tests/test_foods.py measures it at our time constant and step.
+Grain geometry (per grain, ``size`` = its longest dimension, drawn uniformly from ``size_range_m``):
+
+================  ===========================================================================================
+shape             MuJoCo geometry
+================  ===========================================================================================
+sphere            one sphere of diameter ``size``
+sphere_pair       two overlapping spheres of radius ``aspect[0] * size / 2`` spanning ``size``
+sphere_chain      ``aspect[1]`` overlapping spheres of radius ``aspect[0] * size / 2`` in a line spanning ``size``
+                  (a slim grain that interlocks; sphere contacts are analytic, 10x cheaper than ellipsoids)
+spheres_triangle  three spheres in a triangle (a rounded triangular seed)
+capsule           a capsule of radius ``aspect[0] * size / 2`` (a short tube seen from the outside)
+ellipsoid         an ellipsoid of semi-axes ``size/2 * (1, aspect[0], aspect[1])``
+box               a box of half-sizes ``size/2 * (1, aspect[0], aspect[1])``
+flake_pair        two flattened ellipsoids meeting at ``aspect[2]`` degrees (a curled flake)
+================  ===========================================================================================
+
+Mass comes from the geometry's volume times ``density_kg_m3`` (MuJoCo integrates it). Restitution ``e`` becomes
+contact damping: a MuJoCo contact is a damped spring, and one that rebounds with coefficient ``e`` has damping ratio
+``zeta = -ln e / sqrt(pi^2 + ln^2 e)``, with ``solref = (CONTACT_TIMECONST_S, zeta)``.
 
 A user adds a food without editing this file: ``register_food(FoodSpec(...))``.
 """
@@ -40,61 +48,93 @@ CONTACT_TIMECONST_S = 0.02
 # Contact impedance (MuJoCo solimp: dmin, dmax, width in m). A narrow transition keeps grains from sinking.
 GRAIN_SOLIMP = (0.95, 0.99, 0.001)
 
-SHAPES = ("capsule", "sphere", "ellipsoid", "box", "sphere_pair", "spheres_triangle", "flake_pair")
+SHAPES = ("capsule", "sphere", "ellipsoid", "box", "sphere_pair", "sphere_chain", "spheres_triangle", "flake_pair")
+
+# The physics a scene is built with: grain models of the food catalog (and the solver settings that go with them,
+# veragmil_suite.models.scoop_task.PHYSICS_SOLVER_OPTIONS). "table1" reproduces every result made before calibration.
+PHYSICS: tuple[str, ...] = ("calibrated", "table1")
+DEFAULT_PHYSICS = "calibrated"
+
+
+def check_physics(physics: str) -> str:
+    """A physics name as the catalog knows it, or a ValueError naming the accepted ones."""
+    if physics not in PHYSICS:
+        raise ValueError(f"Unknown physics {physics!r}; accepted physics: {', '.join(PHYSICS)}")
+    return physics
 
 
 @dataclass(frozen=True)
-class FoodSpec:
-    """One granular food.
+class GrainModel:
+    """How one food's grains are built in MuJoCo: geometry, mass and contact.
 
     Attributes:
-        name: catalog key.
-        shape: one of SHAPES (the MuJoCo geometry, see the module docstring).
+        shape: one of SHAPES (see the module docstring).
         size_range_m: (min, max) longest dimension of a grain, metres.
-        friction: sliding friction coefficient (Table I).
-        restitution: coefficient of restitution (Table I), mapped to contact damping.
-        density_kg_m3: density, kg/m^3 (Table I gives g/cm^3; x1000).
-        aspect: the other dimensions as fractions of ``size`` (meaning depends on the shape, see module doc).
-        default_grains: grain count of the default scene (chosen for a scoopable pile at real time).
-        rgba: display colour.
+        aspect: the other dimensions as fractions of ``size`` (meaning depends on the shape).
+        density_kg_m3: density of the geometry, kg/m^3 (mass = geometry volume x density).
+        friction: sliding friction coefficient against anything (MuJoCo takes the larger of two geoms').
+        restitution: coefficient of restitution, mapped to contact damping.
+        rolling_friction_m: rolling friction length, m (torque = length x normal force); 0 with condim 3.
+        torsional_friction_m: torsional (spin) friction length, m; 0 with condim 3.
+        margin_m: contact margin, m: contacts act from this distance, so soft contacts settle that far apart
+            rather than overlapping (MuJoCo's soft normal contacts otherwise over-pack a pile).
+        default_grains: grain count of the default scene (a scoopable pile at real time).
     """
 
-    name: str
     shape: str
     size_range_m: tuple[float, float]
+    aspect: tuple[float, ...]
+    density_kg_m3: float
     friction: float
     restitution: float
-    density_kg_m3: float
-    aspect: tuple[float, ...]
-    default_grains: int
-    rgba: tuple[float, float, float, float] = (0.9, 0.9, 0.85, 1.0)
-    table_shape: str = field(default="", compare=False)
+    rolling_friction_m: float = 0.0
+    torsional_friction_m: float = 0.0
+    margin_m: float = 0.0
+    default_grains: int = 100
 
     def __post_init__(self):
         if self.shape not in SHAPES:
-            raise ValueError(f"Food {self.name!r}: unknown shape {self.shape!r}; accepted shapes: {', '.join(SHAPES)}")
+            raise ValueError(f"unknown grain shape {self.shape!r}; accepted shapes: {', '.join(SHAPES)}")
         lo, hi = self.size_range_m
         if not 0 < lo <= hi:
-            raise ValueError(f"Food {self.name!r}: size_range_m must satisfy 0 < min <= max, got {self.size_range_m}")
+            raise ValueError(f"size_range_m must satisfy 0 < min <= max, got {self.size_range_m}")
         if not 0 < self.restitution < 1:
-            raise ValueError(f"Food {self.name!r}: restitution must lie in (0, 1), got {self.restitution}")
+            raise ValueError(f"restitution must lie in (0, 1), got {self.restitution}")
         if self.friction <= 0 or self.density_kg_m3 <= 0 or self.default_grains <= 0:
-            raise ValueError(f"Food {self.name!r}: friction, density and default_grains must be positive")
+            raise ValueError("friction, density_kg_m3 and default_grains must be positive")
+        if min(self.rolling_friction_m, self.torsional_friction_m, self.margin_m) < 0:
+            raise ValueError("rolling_friction_m, torsional_friction_m and margin_m must be at least 0")
+        if self.shape == "sphere_chain" and (len(self.aspect) != 2 or int(self.aspect[1]) < 2):
+            raise ValueError(f"sphere_chain takes aspect (width fraction, spheres >= 2), got {self.aspect}")
+
+    @property
+    def condim(self) -> int:
+        """MuJoCo contact dimensionality: 6 (sliding, torsional, rolling) where the grain resists rolling, else 3."""
+        return 6 if self.rolling_friction_m > 0 or self.torsional_friction_m > 0 else 3
+
+    @property
+    def friction_triplet(self) -> tuple[float, float, float]:
+        """MuJoCo geom friction (sliding, torsional, rolling)."""
+        return (self.friction, self.torsional_friction_m, self.rolling_friction_m)
 
     @property
     def damping_ratio(self) -> float:
-        """Contact damping ratio that rebounds with this food's restitution (see module docstring)."""
+        """Contact damping ratio that rebounds with this grain's restitution (see module docstring)."""
         log_e = math.log(self.restitution)
         return -log_e / math.sqrt(math.pi**2 + log_e**2)
 
     @property
     def solref(self) -> tuple[float, float]:
-        """MuJoCo solref (timeconst s, damping ratio) of this food's contacts."""
+        """MuJoCo solref (timeconst s, damping ratio) of this grain's contacts."""
         return (CONTACT_TIMECONST_S, self.damping_ratio)
 
     @property
     def mean_size_m(self) -> float:
         return 0.5 * (self.size_range_m[0] + self.size_range_m[1])
+
+    def sample_sizes(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """Longest dimension of ``n`` grains, m, uniform over the size range."""
+        return rng.uniform(*self.size_range_m, size=n)
 
     def piece_volume_m3(self, size_m: float | None = None) -> float:
         """Volume of one grain of longest dimension ``size_m`` (the mean size by default), m^3."""
@@ -109,11 +149,12 @@ class FoodSpec:
             return 4 / 3 * math.pi * a * (a * self.aspect[0]) * (a * self.aspect[1])
         if self.shape == "box":
             return s * (s * self.aspect[0]) * (s * self.aspect[1])
-        if self.shape == "sphere_pair":
+        if self.shape in ("sphere_pair", "sphere_chain"):
+            n = 2 if self.shape == "sphere_pair" else int(self.aspect[1])
             r = self.aspect[0] * s / 2
-            d = s - 2 * r  # centre distance; the spheres overlap where d < 2r (a lens counted twice, removed)
+            d = (s - 2 * r) / (n - 1)  # distance of neighbouring centres; a lens counted twice where d < 2r
             lens = math.pi * (4 * r + d) * (2 * r - d) ** 2 / 12 if d < 2 * r else 0.0
-            return 2 * 4 / 3 * math.pi * r**3 - lens
+            return n * 4 / 3 * math.pi * r**3 - (n - 1) * lens
         if self.shape == "spheres_triangle":
             r = _triangle_sphere_radius(s)
             return 3 * 4 / 3 * math.pi * r**3
@@ -121,36 +162,29 @@ class FoodSpec:
         a = s / 4
         return 2 * 4 / 3 * math.pi * a * (s / 2 * self.aspect[0]) * (s / 2 * self.aspect[1])
 
-    def sample_sizes(self, rng: np.random.Generator, n: int) -> np.ndarray:
-        """Longest dimension of ``n`` grains, m, uniform over Table I's range."""
-        return rng.uniform(*self.size_range_m, size=n)
-
     def grain_geoms(self, size_m: float) -> list[dict]:
         """Geoms (MuJoCo attributes, body frame) of one grain whose longest dimension is ``size_m``."""
         s = float(size_m)
+        ident = (1, 0, 0, 0)
         if self.shape == "capsule":
             r = self.aspect[0] * s / 2
-            return [dict(type="capsule", size=(r, s / 2 - r), pos=(0, 0, 0), quat=(1, 0, 0, 0))]
+            return [dict(type="capsule", size=(r, s / 2 - r), pos=(0, 0, 0), quat=ident)]
         if self.shape == "sphere":
-            return [dict(type="sphere", size=(s / 2,), pos=(0, 0, 0), quat=(1, 0, 0, 0))]
-        if self.shape == "ellipsoid":
+            return [dict(type="sphere", size=(s / 2,), pos=(0, 0, 0), quat=ident)]
+        if self.shape in ("ellipsoid", "box"):
             a = s / 2
-            return [dict(type="ellipsoid", size=(a, a * self.aspect[0], a * self.aspect[1]), pos=(0, 0, 0),
-                         quat=(1, 0, 0, 0))]  # fmt: skip
-        if self.shape == "box":
-            h = s / 2
-            return [dict(type="box", size=(h, h * self.aspect[0], h * self.aspect[1]), pos=(0, 0, 0),
-                         quat=(1, 0, 0, 0))]  # fmt: skip
-        if self.shape == "sphere_pair":
+            return [dict(type=self.shape, size=(a, a * self.aspect[0], a * self.aspect[1]), pos=(0, 0, 0), quat=ident)]
+        if self.shape in ("sphere_pair", "sphere_chain"):
+            n = 2 if self.shape == "sphere_pair" else int(self.aspect[1])
             r = self.aspect[0] * s / 2
             return [
-                dict(type="sphere", size=(r,), pos=(sign * (s / 2 - r), 0, 0), quat=(1, 0, 0, 0)) for sign in (1, -1)
+                dict(type="sphere", size=(r,), pos=(x, 0, 0), quat=ident) for x in np.linspace(r - s / 2, s / 2 - r, n)
             ]
         if self.shape == "spheres_triangle":
             r = _triangle_sphere_radius(s)
             c = (s - 2 * r) / math.sqrt(3)  # circumradius of the triangle of sphere centres
             return [
-                dict(type="sphere", size=(r,), pos=(c * math.cos(t), c * math.sin(t), 0), quat=(1, 0, 0, 0))
+                dict(type="sphere", size=(r,), pos=(c * math.cos(t), c * math.sin(t), 0), quat=ident)
                 for t in (0.0, 2 * math.pi / 3, 4 * math.pi / 3)
             ]
         # flake_pair: two flattened ellipsoids meeting at a slant, so flakes do not stack like coins
@@ -171,10 +205,68 @@ def _triangle_sphere_radius(size_m: float) -> float:
     return size_m / 3.2
 
 
-# Table I of the paper. Sizes are metres (Table I: cm), densities kg/m^3 (Table I: g/cm^3).
-# ``aspect`` and ``default_grains`` are our choices: aspect from typical grain proportions (rice is short-grain,
-# width 0.55 of length: a heap twice the volume of long-grain for the same contacts), grain counts from the
-# default-scene study (README, "Physics").
+@dataclass(frozen=True)
+class Measured:
+    """A published measurement: a range (low == high for a single value) in ``unit``, and where it comes from."""
+
+    low: float
+    high: float
+    unit: str
+    source: str
+
+    @property
+    def mid(self) -> float:
+        return 0.5 * (self.low + self.high)
+
+
+@dataclass(frozen=True)
+class FoodReference:
+    """What the real food measures; None where no published value was found (the benchmark names the gap).
+
+    Attributes:
+        angle_of_repose_deg: static angle of repose of a poured or lifted-cylinder heap, degrees.
+        bulk_density_g_cm3: loose-fill bulk density, g/cm^3.
+        grain_mass_mg: mass of one grain (thousand-grain mass / 1000), mg.
+        grain_dims_mm: length x width x thickness of one grain, mm (the low and high fields hold length only;
+            ``source`` names all three).
+        particle_density_g_cm3: density of one grain (not of the bulk), g/cm^3.
+    """
+
+    angle_of_repose_deg: Measured | None = None
+    bulk_density_g_cm3: Measured | None = None
+    grain_mass_mg: Measured | None = None
+    grain_dims_mm: tuple[float, float, float] | None = None
+    particle_density_g_cm3: Measured | None = None
+    dims_source: str = ""
+
+
+@dataclass(frozen=True)
+class FoodSpec:
+    """One granular food: its Table I grain model, its calibrated grain model and the measurements behind it.
+
+    Attributes:
+        name: catalog key.
+        table1: the grain model of the paper's Table I (``physics="table1"``).
+        calibrated: the grain model calibrated against ``reference`` (``physics="calibrated"``); None uses table1.
+        reference: published measurements of the real food.
+        rgba: display colour.
+        table_shape: Table I's word for the shape.
+    """
+
+    name: str
+    table1: GrainModel
+    calibrated: GrainModel | None = None
+    reference: FoodReference = field(default_factory=FoodReference)
+    rgba: tuple[float, float, float, float] = (0.9, 0.9, 0.85, 1.0)
+    table_shape: str = field(default="", compare=False)
+
+    def grain(self, physics: str = DEFAULT_PHYSICS) -> GrainModel:
+        """The grain model of ``physics`` ("calibrated" or "table1")."""
+        if check_physics(physics) == "table1" or self.calibrated is None:
+            return self.table1
+        return self.calibrated
+
+
 FOODS: dict[str, FoodSpec] = {}
 
 
@@ -186,23 +278,6 @@ def register_food(food: FoodSpec, overwrite: bool = False) -> FoodSpec:
     return food
 
 
-for _food in (
-    # name, shape, size range (m), friction, restitution, density (kg/m^3), aspect, default grains, rgba, Table I shape
-    FoodSpec("rice", "sphere_pair", (0.005, 0.007), 0.20, 0.10, 1450.0, (0.55,), 200, (0.96, 0.95, 0.9, 1), "Elongated"),
-    FoodSpec("beans", "ellipsoid", (0.010, 0.018), 0.25, 0.20, 1000.0, (0.65, 0.5), 60, (0.55, 0.2, 0.15, 1), "Oval"),
-    FoodSpec("buckwheat", "spheres_triangle", (0.004, 0.006), 0.30, 0.10, 780.0, (), 150, (0.6, 0.42, 0.25, 1), "Triangular"),
-    FoodSpec("peas", "sphere", (0.006, 0.008), 0.22, 0.20, 720.0, (), 150, (0.45, 0.75, 0.25, 1), "Spherical"),
-    FoodSpec("barley", "sphere_pair", (0.008, 0.012), 0.18, 0.15, 1250.0, (0.55,), 120, (0.85, 0.78, 0.6, 1), "Oval"),
-    FoodSpec("flakes", "flake_pair", (0.012, 0.020), 0.15, 0.05, 400.0, (0.8, 0.12, 20.0), 80, (0.9, 0.7, 0.3, 1), "Irregular"),
-    FoodSpec("pasta", "capsule", (0.020, 0.035), 0.25, 0.10, 1200.0, (0.28,), 40, (0.98, 0.85, 0.45, 1), "Cylindrical"),
-):  # fmt: skip
-    register_food(_food)
-
-# The paper's split (Section IV-A): trained on four foods, generalization measured on three unseen ones.
-TRAINING_FOODS: tuple[str, ...] = ("rice", "buckwheat", "barley", "pasta")
-UNSEEN_FOODS: tuple[str, ...] = ("peas", "beans", "flakes")
-
-
 def get_food(food: str | FoodSpec) -> FoodSpec:
     """Looks a food up by name; a FoodSpec passes through unchanged."""
     if isinstance(food, FoodSpec):
@@ -212,12 +287,103 @@ def get_food(food: str | FoodSpec) -> FoodSpec:
     return FOODS[food]
 
 
+# Sources of the reference measurements (short keys, full citations).
+_AOR_RICE = "Applied Engineering in Agriculture, doi:10.13031/aea.13156: piling AoR, long-grain rough rice, 12-21% m.c."
+_JOUKI = "Jouki and Khazaei 2012, 'Some physical properties of rice seed'"
+_TAVAKOLI = "Tavakoli et al. 2009, 'Moisture-dependent physical properties of barley grains', IJABE"
+_YALCIN = "Yalcin et al. 2007, 'Physical properties of pea seed', J. Food Engineering 79:731"
+_GANJLOO = "Ganjloo et al. 2018, International Food Research Journal 25(3): dried green peas"
+_BEANS = "J. Engineering 2018, article 8134975; moisture-dependent properties of organic beans (Phaseolus vulgaris)"
+_KALINIEWICZ = "Kaliniewicz et al. 2015, 'Frictional properties of selected seeds', Technical Sciences 18(2)"
+_SURVEY = "issue #32's survey of bulk densities (primary source not recorded there)"
+_FLAKES_PATENT = (
+    "US patent 6,183,788 (General Mills, 2001): flaked RTE cereal, 150-200 g per 100 in^3, 0.6-0.8 mm thick"
+)
+
+# Table I of the paper (sizes: cm -> m, densities: g/cm^3 -> kg/m^3) with our geometry; default grain counts from
+# the default-scene study (docs: physics).
+_TABLE1 = {
+    "rice": GrainModel("sphere_pair", (0.005, 0.007), (0.55,), 1450.0, 0.20, 0.10, default_grains=200),
+    "beans": GrainModel("ellipsoid", (0.010, 0.018), (0.65, 0.5), 1000.0, 0.25, 0.20, default_grains=60),
+    "buckwheat": GrainModel("spheres_triangle", (0.004, 0.006), (), 780.0, 0.30, 0.10, default_grains=150),
+    "peas": GrainModel("sphere", (0.006, 0.008), (), 720.0, 0.22, 0.20, default_grains=150),
+    "barley": GrainModel("sphere_pair", (0.008, 0.012), (0.55,), 1250.0, 0.18, 0.15, default_grains=120),
+    "flakes": GrainModel("flake_pair", (0.012, 0.020), (0.8, 0.12, 20.0), 400.0, 0.15, 0.05, default_grains=80),
+    "pasta": GrainModel("capsule", (0.020, 0.035), (0.28,), 1200.0, 0.25, 0.10, default_grains=40),
+}
+
+_REFERENCE = {
+    "rice": FoodReference(
+        angle_of_repose_deg=Measured(29.6, 36.9, "deg", _AOR_RICE),
+        bulk_density_g_cm3=Measured(0.78, 0.80, "g/cm3", _SURVEY),
+        grain_mass_mg=Measured(20.0, 27.0, "mg", _JOUKI),
+        grain_dims_mm=(7.4, 2.75, 2.5),
+        dims_source=_JOUKI,
+    ),
+    "buckwheat": FoodReference(
+        bulk_density_g_cm3=Measured(0.52, 0.62, "g/cm3", _SURVEY),
+        grain_mass_mg=Measured(28.6, 37.3, "mg", _KALINIEWICZ),
+    ),
+    "barley": FoodReference(
+        angle_of_repose_deg=Measured(31.2, 36.9, "deg", _TAVAKOLI),
+        bulk_density_g_cm3=Measured(0.57, 0.65, "g/cm3", _TAVAKOLI),
+        grain_mass_mg=Measured(44.5, 51.3, "mg", _TAVAKOLI),
+    ),
+    "pasta": FoodReference(bulk_density_g_cm3=Measured(0.36, 0.48, "g/cm3", _SURVEY + ": dry macaroni and penne")),
+    "peas": FoodReference(
+        angle_of_repose_deg=Measured(20.5, 20.5, "deg", _GANJLOO),
+        bulk_density_g_cm3=Measured(0.65, 0.71, "g/cm3", _YALCIN),
+        grain_mass_mg=Measured(178.0, 214.0, "mg", _YALCIN),
+        particle_density_g_cm3=Measured(1.09, 1.16, "g/cm3", _YALCIN),
+    ),
+    "beans": FoodReference(
+        angle_of_repose_deg=Measured(35.0, 40.0, "deg", _BEANS),
+        bulk_density_g_cm3=Measured(0.69, 0.77, "g/cm3", _BEANS),
+        grain_mass_mg=Measured(643.0, 730.0, "mg", _BEANS),
+    ),
+    "flakes": FoodReference(bulk_density_g_cm3=Measured(0.092, 0.122, "g/cm3", _FLAKES_PATENT)),
+}
+
+# Calibrated grain models: see docs/physics.md for how each value was chosen, and
+# results/calibration/ for the measurements (python -m veragmil_suite.calibration).
+_CALIBRATED: dict[str, GrainModel] = {
+    # name: GrainModel(shape, size range m, aspect, density kg/m^3, friction, restitution, rolling m, torsional m,
+    #                  margin m, default grains)
+    "rice": GrainModel("sphere_chain", (0.005, 0.007), (0.40, 3), 1030.0, 0.50, 0.10, 5e-4, 1e-3, 1e-4, 200),
+    "buckwheat": GrainModel("spheres_triangle", (0.004, 0.006), (), 640.0, 0.50, 0.10, 5e-4, 1e-3, 1e-4, 150),
+    "barley": GrainModel("sphere_chain", (0.008, 0.012), (0.34, 3), 712.0, 0.50, 0.15, 5e-4, 1e-3, 1e-4, 120),
+    "pasta": GrainModel("capsule", (0.020, 0.035), (0.28,), 650.0, 0.45, 0.10, 5e-4, 1e-3, 1e-4, 40),
+    "peas": GrainModel("sphere", (0.006, 0.008), (), 1120.0, 0.40, 0.20, 2e-4, 5e-4, 1e-4, 150),
+    "beans": GrainModel("ellipsoid", (0.010, 0.018), (0.65, 0.5), 1265.0, 0.50, 0.20, 5e-4, 1e-3, 1e-4, 60),
+    "flakes": GrainModel("flake_pair", (0.012, 0.020), (0.8, 0.12, 20.0), 250.0, 0.50, 0.05, 5e-4, 1e-3, 1e-4, 80),
+}
+
+_RGBA_SHAPE = {
+    "rice": ((0.96, 0.95, 0.9, 1), "Elongated"),
+    "beans": ((0.55, 0.2, 0.15, 1), "Oval"),
+    "buckwheat": ((0.6, 0.42, 0.25, 1), "Triangular"),
+    "peas": ((0.45, 0.75, 0.25, 1), "Spherical"),
+    "barley": ((0.85, 0.78, 0.6, 1), "Oval"),
+    "flakes": ((0.9, 0.7, 0.3, 1), "Irregular"),
+    "pasta": ((0.98, 0.85, 0.45, 1), "Cylindrical"),
+}
+
+for _name, (_rgba, _table_shape) in _RGBA_SHAPE.items():
+    register_food(
+        FoodSpec(_name, _TABLE1[_name], _CALIBRATED.get(_name), _REFERENCE[_name], _rgba, _table_shape),
+    )
+
+# The paper's split (Section IV-A): trained on four foods, generalization measured on three unseen ones.
+TRAINING_FOODS: tuple[str, ...] = ("rice", "buckwheat", "barley", "pasta")
+UNSEEN_FOODS: tuple[str, ...] = ("peas", "beans", "flakes")
+
+
 @dataclass(frozen=True)
 class Surface:
     """A non-food surface of the scene.
 
     MuJoCo takes the larger of two geoms' friction coefficients for a contact. Spoon and bowl are set below every
-    food's coefficient so that each food-on-tool contact uses the food's own Table I value.
+    food's coefficient so that each food-on-tool contact uses the food's own value.
 
     Attributes:
         friction: sliding friction coefficient.

@@ -60,6 +60,8 @@ METRIC_KEYS = (
     "spill_fraction",
     "scooped_volume_cm3",
     "spoon_volume_cm3",
+    "spoon_mass_g",
+    "spilled_mass_g",
     "completion_time_s",
     "physics_error",
     "stage",

@@ -13,7 +13,7 @@ from robosuite.utils.observables import Observable, sensor
 
 from veragmil_suite.controllers import leave_heading_free, load_scoop_controller_config
 from veragmil_suite.fast_control import use_block_mass_matrix
-from veragmil_suite.foods import FoodSpec, get_food
+from veragmil_suite.foods import DEFAULT_PHYSICS, FoodSpec, GrainModel, check_physics, get_food
 from veragmil_suite.humanoid import SPOON_ARM, HumanoidLayout, check_robot, humanoid_layout, self_contact_excludes
 from veragmil_suite.kinematics import solve_pose_ik
 from veragmil_suite.models.arena import ScoopArena
@@ -22,8 +22,8 @@ from veragmil_suite.models.dish import DishShape
 from veragmil_suite.models.grains import GrainPile
 from veragmil_suite.models.scoop_task import (
     GRAIN_SLEEP_TOLERANCE,
+    PHYSICS_SOLVER_OPTIONS,
     PHYSICS_TIMESTEP_S,
-    PILE_SOLVER_OPTIONS,
     ScoopTask,
     check_physics_timestep,
     check_sleep_tolerance,
@@ -65,6 +65,8 @@ class ScoopGranular(ManipulationEnv):
         base_types (str): robot base type; "default" uses the robot's own
         initialization_noise (dict or "default"): joint noise of the initial (pre-scoop) configuration
         food (str or FoodSpec): a catalog food name (veragmil_suite.foods.FOODS) or a custom FoodSpec
+        physics (str): "calibrated" (default: grains calibrated against measurements of the real foods) or "table1"
+            (the paper's Table I parameters, as every result before calibration); veragmil_suite.foods.PHYSICS
         n_grains (None or int): grains in the bowl; None uses the food's default (a scoopable real-time scene)
         pile_variants (int): distinct piles (grain sizes and arrangement) drawn from per reset; each is settled
             once per machine and cached (veragmil_suite.settling)
@@ -113,6 +115,7 @@ class ScoopGranular(ManipulationEnv):
         base_types="default",
         initialization_noise="default",
         food="rice",
+        physics=DEFAULT_PHYSICS,
         n_grains=None,
         pile_variants=4,
         bowl_shape: DishShape = DEFAULT_BOWL_SHAPE,
@@ -157,6 +160,8 @@ class ScoopGranular(ManipulationEnv):
         seed=None,
     ):
         self.food: FoodSpec = get_food(food)
+        self.physics = check_physics(physics)
+        self.grain: GrainModel = self.food.grain(self.physics)
         for robot in [robots] if isinstance(robots, str) else list(robots):
             check_robot(robot)
         robot_name = robots if isinstance(robots, str) else robots[0]
@@ -165,12 +170,12 @@ class ScoopGranular(ManipulationEnv):
             gripper_types = [[gripper_types, None]]  # per arm (right, left) of the one robot
         if n_grains is not None and (not isinstance(n_grains, (int, np.integer)) or n_grains <= 0):
             raise ValueError(f"n_grains must be a positive integer or None (the food's default), got {n_grains!r}")
-        self.n_grains = int(n_grains) if n_grains is not None else self.food.default_grains
-        limit = MAX_GRAINS_PER_DEFAULT * self.food.default_grains
+        self.n_grains = int(n_grains) if n_grains is not None else self.grain.default_grains
+        limit = MAX_GRAINS_PER_DEFAULT * self.grain.default_grains
         if self.n_grains > limit:
             raise ValueError(
                 f"n_grains {self.n_grains} is more than a bowl of {self.food.name} settles in reasonable time: at most "
-                f"{limit} ({MAX_GRAINS_PER_DEFAULT}x its default of {self.food.default_grains})"
+                f"{limit} ({MAX_GRAINS_PER_DEFAULT}x its default of {self.grain.default_grains})"
             )
         if int(pile_variants) < 1:
             raise ValueError(f"pile_variants must be at least 1, got {pile_variants!r}")
@@ -365,12 +370,15 @@ class ScoopGranular(ManipulationEnv):
     @property
     def solver_options(self) -> dict:
         """MuJoCo <option> attributes of the scene and of settling: the defaults, updated by physics_solver_options."""
-        return {**PILE_SOLVER_OPTIONS, **(self.physics_solver_options or {})}
+        return {**PHYSICS_SOLVER_OPTIONS[self.physics], **(self.physics_solver_options or {})}
 
     def _pile(self, variant: int) -> GrainPile:
         """Pile variant ``variant`` of this food and grain count (the same on every machine)."""
         return GrainPile(
-            self.food, self.n_grains, np.random.default_rng([variant, self.n_grains, *map(ord, self.food.name)])
+            self.food,
+            self.n_grains,
+            np.random.default_rng([variant, self.n_grains, *map(ord, self.food.name)]),
+            physics=self.physics,
         )
 
     def settled_piles(self) -> dict[str, SettledPile]:
@@ -448,6 +456,7 @@ class ScoopGranular(ManipulationEnv):
         self.grain_geom_ids = np.flatnonzero(np.isin(model.geom_bodyid, self.grain_body_ids))
         self.eef_site_id = self.robots[0].eef_site_id[SPOON_ARM]
         self.grain_volumes_m3 = self.grain_pile.volumes_m3
+        self.grain_masses_kg = model.body_mass[self.grain_body_ids].copy()
         if self.min_portion_cm3 is not None:
             self.min_portion_m3 = self.min_portion_cm3 * M3_PER_CM3
         else:
@@ -607,6 +616,7 @@ class ScoopGranular(ManipulationEnv):
         vol = self.grain_volumes_m3
         spoon_volume = float(vol[in_spoon].sum())
         spilled_volume = float(vol[spilled].sum())
+        mass = self.grain_masses_kg
         lifted = float(vol[~in_bowl].sum()) + float(vol[in_spoon & in_bowl].sum())
         spoon_vel = np.zeros(6)
         mujoco.mj_objectVelocity(
@@ -620,6 +630,8 @@ class ScoopGranular(ManipulationEnv):
             grains_spilled=int(spilled.sum()),
             spoon_volume_m3=spoon_volume,
             spilled_volume_m3=spilled_volume,
+            spoon_mass_kg=float(mass[in_spoon].sum()),
+            spilled_mass_kg=float(mass[spilled].sum()),
             lifted_volume_m3=lifted,
             spill_fraction=spilled_volume / lifted if lifted > 0 else 0.0,
             spoon_pos=spoon_pos.copy(),
@@ -713,6 +725,8 @@ class ScoopGranular(ManipulationEnv):
                 spilled_volume_cm3=0.0,
                 spill_fraction=0.0,
                 scooped_volume_cm3=0.0,
+                spoon_mass_g=0.0,
+                spilled_mass_g=0.0,
                 completion_time_s=elapsed,
                 success=False,
                 stage=SCOOP_STAGES[0],
@@ -729,6 +743,8 @@ class ScoopGranular(ManipulationEnv):
             spill_fraction=m["spill_fraction"],
             scooped_volume_cm3=m["lifted_volume_m3"] / M3_PER_CM3,
             spoon_volume_cm3=m["spoon_volume_m3"] / M3_PER_CM3,
+            spoon_mass_g=1000.0 * m["spoon_mass_kg"],
+            spilled_mass_g=1000.0 * m["spilled_mass_kg"],
             completion_time_s=self._success_time if self._success_time is not None else elapsed,
             success=success,
             stage=self.scoop_stage(),
@@ -819,8 +835,8 @@ class ScoopGranular(ManipulationEnv):
 
                 @sensor(modality=modality)
                 def food_params(obs_cache):
-                    f = self.food
-                    return np.array([f.mean_size_m, f.friction, f.restitution, f.density_kg_m3 / 1000.0])
+                    g = self.grain
+                    return np.array([g.mean_size_m, g.friction, g.restitution, g.density_kg_m3 / 1000.0])
 
                 sensors.append(food_params)
 

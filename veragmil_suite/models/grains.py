@@ -8,7 +8,7 @@ import mujoco
 import numpy as np
 from robosuite.utils.mjcf_utils import array_to_string, new_body, new_geom
 
-from veragmil_suite.foods import GRAIN_SOLIMP, FoodSpec
+from veragmil_suite.foods import DEFAULT_PHYSICS, GRAIN_SOLIMP, FoodSpec
 from veragmil_suite.models import contact_groups
 from veragmil_suite.models.dish import DishShape
 
@@ -29,19 +29,29 @@ class GrainPile:
         n_grains (int): how many grains
         rng (np.random.Generator): draws every grain's size and starting pose; the same seed gives the same XML
         name (str): prefix of the bodies, joints and geoms
+        physics (str): which of the food's grain models ("calibrated" or "table1", veragmil_suite.foods.PHYSICS)
     """
 
-    def __init__(self, food: FoodSpec, n_grains: int, rng: np.random.Generator, name: str = "grain"):
+    def __init__(
+        self,
+        food: FoodSpec,
+        n_grains: int,
+        rng: np.random.Generator,
+        name: str = "grain",
+        physics: str = DEFAULT_PHYSICS,
+    ):
         if n_grains <= 0:
             raise ValueError(f"n_grains must be a positive integer, got {n_grains!r}")
         self.food = food
+        self.physics = physics
+        self.grain = food.grain(physics)
         self.n_grains = int(n_grains)
         self.name = name
-        self.sizes = food.sample_sizes(rng, self.n_grains)
-        self.geoms = [food.grain_geoms(s) for s in self.sizes]
+        self.sizes = self.grain.sample_sizes(rng, self.n_grains)
+        self.geoms = [self.grain.grain_geoms(s) for s in self.sizes]
         # Bounding radius of each grain in its body frame: placement spacing uses it.
         self.radii = np.array([_bounding_radius(g) for g in self.geoms])
-        self.volumes_m3 = np.array([food.piece_volume_m3(s) for s in self.sizes])
+        self.volumes_m3 = np.array([self.grain.piece_volume_m3(s) for s in self.sizes])
         self._orientation_seed = int(rng.integers(2**31))
         self._mass_properties = None
 
@@ -95,9 +105,11 @@ class GrainPile:
         return out
 
     def _bodies(self, inertials: dict | None) -> list[ET.Element]:
-        solref = array_to_string(self.food.solref)
+        grain = self.grain
+        solref = array_to_string(grain.solref)
         solimp = array_to_string(GRAIN_SOLIMP)
-        friction = array_to_string((self.food.friction, 0.005, 0.0001))
+        # condim 3 ignores the torsional and rolling entries; Table I grains keep MuJoCo's usual small ones
+        friction = array_to_string(grain.friction_triplet if grain.condim == 6 else (grain.friction, 0.005, 0.0001))
         out = []
         for i, geoms in enumerate(self.geoms):
             body = new_body(name=f"{self.name}{i}", pos=(0, 0, 0))
@@ -124,14 +136,16 @@ class GrainPile:
                     pos=g["pos"],
                     quat=g["quat"],
                     rgba=self.food.rgba,
-                    density=self.food.density_kg_m3,
-                    condim=3,
+                    density=float(grain.density_kg_m3),
+                    condim=grain.condim,
                     group=1,
                     **contact_groups.GRAIN,
                 )
                 geom.set("friction", friction)
                 geom.set("solref", solref)
                 geom.set("solimp", solimp)
+                if grain.margin_m > 0:
+                    geom.set("margin", repr(grain.margin_m))
                 body.append(geom)
             out.append(body)
         return out

@@ -16,14 +16,26 @@ from veragmil_suite.models.grains import GrainPile
 # cost of a simulated second against robosuite's 2 ms with piles as still (grain contacts use a 20 ms time
 # constant, above MuJoCo's 2-step minimum).
 PHYSICS_TIMESTEP_S = 1.0 / 240.0
-PILE_SOLVER_OPTIONS = {
-    "solver": "CG",
-    "iterations": "30",
-    "ls_iterations": "10",
-    "cone": "elliptic",
-    # robosuite's base model sets impratio 20 for crisp finger grasps; in a pile it starves the normal forces of
-    # solver iterations and rice leaked through the bowl's floor (4 of 200 grains within 0.25 s).
-    "impratio": "1",
+# Solver settings by physics (veragmil_suite.foods.PHYSICS).
+PHYSICS_SOLVER_OPTIONS = {
+    "table1": {
+        "solver": "CG",
+        "iterations": "30",
+        "ls_iterations": "10",
+        "cone": "elliptic",
+        # robosuite's base model sets impratio 20 for crisp finger grasps; with 30 iterations it starves the normal
+        # forces and rice leaked through the bowl's floor (4 of 200 grains within 0.25 s).
+        "impratio": "1",
+    },
+    "calibrated": {
+        "solver": "CG",
+        "iterations": "200",
+        "ls_iterations": "10",
+        "cone": "elliptic",
+        # soft friction (impratio 1) lets grains creep down a heap below their friction angle; at 100 friction is
+        # as stiff as the normal contact, which needs more iterations to converge (30 ejected grains)
+        "impratio": "100",
+    },
 }
 # MuJoCo's island sleeping (mjENBL_SLEEP, MuJoCo >= 3.8): a tree whose every velocity stays under this tolerance
 # (m/s and rad/s, scaled by MuJoCo per degree of freedom) falls asleep and costs no collision or solver work until
@@ -127,7 +139,9 @@ class ScoopTask(ManipulationTask):
         if sleep_tolerance is not None:
             flag.set("sleep", "enable")
             option.set("sleep_tolerance", repr(float(sleep_tolerance)))
-        for key, value in (PILE_SOLVER_OPTIONS if solver_options is None else solver_options).items():
+        for key, value in (
+            PHYSICS_SOLVER_OPTIONS[grain_pile.physics] if solver_options is None else solver_options
+        ).items():
             option.set(key, str(value))
         if fast_rendering:
             visual = self.root.find("visual")

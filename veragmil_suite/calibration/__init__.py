@@ -1,0 +1,1 @@
+"""Calibration of the grains against published measurements of the real foods (python -m veragmil_suite.calibration)."""

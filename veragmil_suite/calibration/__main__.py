@@ -1,0 +1,5 @@
+import sys
+
+from veragmil_suite.calibration.benchmark import main
+
+sys.exit(main())

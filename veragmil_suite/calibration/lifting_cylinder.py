@@ -1,0 +1,211 @@
+"""The lifting-cylinder test: fill a tube with grains, lift it slowly, measure the heap left behind.
+
+The standard static angle-of-repose test for granular food. Grains are built exactly as the task builds them
+(GrainPile: the food catalog's grain model, mass properties and contact) and run under the task's solver settings;
+only the container differs. The fill before lifting also gives the poured pile's packing fraction and bulk density.
+
+Angles are measured two ways on the heap's surface profile (the highest grain top in rings about the axis): the
+height over the base radius, and a least-squares slope of the profile's flank (between 20% and 85% of the height).
+"""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from dataclasses import asdict, dataclass
+
+import mujoco
+import numpy as np
+
+from veragmil_suite.foods import FoodSpec
+from veragmil_suite.models import contact_groups
+from veragmil_suite.models.dish import DishShape
+from veragmil_suite.models.grains import GrainPile
+from veragmil_suite.models.scoop_task import PHYSICS_SOLVER_OPTIONS, PHYSICS_TIMESTEP_S
+
+REST_SPEED_M_S = 0.002  # every grain slower than this: at rest (the test's stopping rule)
+EJECTED_SPEED_M_S = 3.0  # faster than any fall in the test (2 m/s from 20 cm): a grain the solver threw
+LIFT_SPEED_M_S = 0.02
+TUBE_STAVES = 24
+STAVE_HALF_THICKNESS_M = 0.005
+
+
+@dataclass
+class CylinderResult:
+    """What one lifting-cylinder run measured."""
+
+    n_grains: int
+    grain_mass_mg: float
+    fill_height_m: float
+    packing_fraction: float
+    bulk_density_g_cm3: float
+    heap_height_m: float
+    heap_radius_m: float
+    angle_height_base_deg: float
+    angle_slope_fit_deg: float
+    settled: bool
+    escaped_fast: int  # grains seen faster than EJECTED_SPEED_M_S: a solver that throws grains
+    sim_time_s: float
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+TUBE_RADIUS_M = 0.021  # the standard test's tube, 3.5 cm filled: rice
+TUBE_GRAINS_ACROSS = 3.0  # larger grains get a tube this many grain lengths in radius...
+TUBE_RADIUS_MAX_M = 0.06  # ...up to this (pasta: a 12 cm tube of 2-3.5 cm pieces)
+
+
+def tube_size(food: FoodSpec, physics: str, scale: float = 1.0) -> tuple[float, float]:
+    """Tube radius and fill height (m): the standard 2.1 cm by 3.5 cm, widened for large grains, times ``scale``."""
+    size = food.grain(physics).size_range_m[1]
+    radius = scale * min(max(TUBE_RADIUS_M, TUBE_GRAINS_ACROSS * size), TUBE_RADIUS_MAX_M)
+    return radius, radius * 3.5 / 2.1
+
+
+def grains_to_fill(food: FoodSpec, physics: str, radius: float, height: float, packing: float = 0.6) -> int:
+    """Grain count that fills the tube about ``height`` high at a typical packing fraction."""
+    grain = food.grain(physics)
+    return max(20, int(math.pi * radius**2 * height * packing / grain.piece_volume_m3()))
+
+
+def _model_xml(pile: GrainPile, radius: float, option: dict, timestep: float) -> str:
+    root = ET.Element("mujoco", model="lifting_cylinder")
+    opt = ET.SubElement(root, "option", timestep=repr(timestep), **{k: str(v) for k, v in option.items()})
+    ET.SubElement(opt, "flag", eulerdamp="disable")  # as in ScoopTask
+    world = ET.SubElement(root, "worldbody")
+    floor = ET.SubElement(world, "geom", name="floor", type="box", pos="0 0 -0.01", size="0.5 0.5 0.01")
+    floor.set("friction", "0.01 0 0")  # the grains' own friction acts (MuJoCo takes the larger)
+    for key, value in contact_groups.SUPPORT.items():
+        floor.set(key, str(value))
+    tube = ET.SubElement(world, "body", name="tube", mocap="true", pos="0 0 0")
+    height = 0.3
+    t = STAVE_HALF_THICKNESS_M
+    chord = 2 * (radius + t) * math.tan(math.pi / TUBE_STAVES) * 1.1
+    for k in range(TUBE_STAVES):
+        theta = 2 * math.pi * k / TUBE_STAVES
+        stave = ET.SubElement(tube, "geom", type="box", size=f"{t} {chord / 2} {height / 2}")
+        stave.set("pos", f"{(radius + t) * math.cos(theta)} {(radius + t) * math.sin(theta)} {height / 2 + 5e-4}")
+        stave.set("euler", f"0 0 {theta}")
+        stave.set("friction", "0.01 0 0")  # a smooth tube wall
+        for key, value in contact_groups.SHELL.items():
+            stave.set(key, str(value))
+    for body in pile.bodies():
+        world.append(body)
+    return ET.tostring(root, encoding="unicode")
+
+
+def _run_until_rest(model, data, ids, max_s: float, min_s: float = 0.3) -> tuple[bool, int]:
+    """Steps until every grain is slower than REST_SPEED_M_S; returns (came to rest, most grains seen ejected)."""
+    start = data.time
+    fast = 0
+    while data.time - start < max_s:
+        mujoco.mj_step(model, data, nstep=24)
+        speed = np.linalg.norm(data.cvel[ids, 3:], axis=1)
+        if not np.isfinite(speed).all():
+            raise RuntimeError("the grains blew up (non-finite velocities)")
+        fast = max(fast, int((speed > EJECTED_SPEED_M_S).sum()))
+        if data.time - start >= min_s and speed.max() < REST_SPEED_M_S:
+            return True, fast
+    return False, fast
+
+
+def lifting_cylinder(
+    food: FoodSpec,
+    physics: str,
+    scale: float = 1.0,
+    seed: int = 0,
+    solver_options: dict | None = None,
+    max_settle_s: float = 8.0,
+) -> CylinderResult:
+    """Runs the test for ``food`` built with ``physics`` (its grain model and solver settings) in a tube of
+    ``scale`` times the standard size.
+
+    Sleeping stays off: a grain asleep in the tube would not notice the wall leave.
+    """
+    radius, fill = tube_size(food, physics, scale)
+    n = grains_to_fill(food, physics, radius, fill)
+    pile = GrainPile(food, n, np.random.default_rng(seed), physics=physics)
+    option = {**PHYSICS_SOLVER_OPTIONS[physics], **(solver_options or {})}
+    model = mujoco.MjModel.from_xml_string(_model_xml(pile, radius, option, PHYSICS_TIMESTEP_S))
+    data = mujoco.MjData(model)
+    shape = DishShape(
+        rim_semi_axes=(radius, radius),
+        floor_semi_axes=(radius, radius),
+        depth=10.0,
+        wall_half_thickness=STAVE_HALF_THICKNESS_M,
+        floor_half_thickness=0.01,
+    )
+    adr = np.array([model.joint(j).qposadr[0] for j in pile.joint_names])
+    data.qpos[adr[:, None] + np.arange(7)] = pile.lattice_qpos(shape, rim_center=np.array([0.0, 0.0, 10.0]))
+    ids = np.array([model.body(b).id for b in pile.body_names])
+    mass = model.body_mass[ids]
+    half_thickness = pile.thickness_radii
+
+    rest_fill, fast_fill = _run_until_rest(model, data, ids, max_settle_s)
+    fill_height = _fill_height(data.xpos[ids], half_thickness, radius, 2 * float(pile.radii.mean()))
+    bulk_volume = math.pi * radius**2 * fill_height
+
+    lift_to = fill_height + 0.02
+    while data.mocap_pos[0, 2] < lift_to:
+        data.mocap_pos[0, 2] += LIFT_SPEED_M_S * model.opt.timestep
+        mujoco.mj_step(model, data)
+    data.mocap_pos[0, 2] = 5.0  # out of the way
+    rest_heap, fast_heap = _run_until_rest(model, data, ids, max_settle_s)
+    height, base, angle_hb, angle_fit = heap_angles(
+        data.xpos[ids], half_thickness, ring_width=2 * float(pile.radii.mean())
+    )
+    return CylinderResult(
+        n_grains=n,
+        grain_mass_mg=float(mass.mean() * 1e6),
+        fill_height_m=fill_height,
+        packing_fraction=float(pile.volumes_m3.sum() / bulk_volume),
+        bulk_density_g_cm3=float(mass.sum() / bulk_volume / 1000.0),
+        heap_height_m=height,
+        heap_radius_m=base,
+        angle_height_base_deg=angle_hb,
+        angle_slope_fit_deg=angle_fit,
+        settled=rest_fill and rest_heap,
+        escaped_fast=max(fast_fill, fast_heap),
+        sim_time_s=float(data.time),
+    )
+
+
+def _fill_height(pos: np.ndarray, half_thickness: np.ndarray, radius: float, cell: float) -> float:
+    """Mean height of the fill's top surface, from the highest grain top in each column away from the wall."""
+    inner = np.hypot(pos[:, 0], pos[:, 1]) < radius - 2 * half_thickness.max()
+    top = pos[:, 2] + half_thickness
+    columns: dict[tuple[int, int], float] = {}
+    for (x, y), z in zip(np.floor(pos[inner, :2] / cell).astype(int), top[inner]):
+        columns[(x, y)] = max(columns.get((x, y), 0.0), z)
+    return float(np.mean(list(columns.values())))
+
+
+def heap_angles(pos: np.ndarray, half_thickness: np.ndarray, ring_width: float) -> tuple[float, float, float, float]:
+    """A heap about the z axis: (height m, base radius m, height/base angle deg, slope-fit angle deg).
+
+    A heap with too few rings on its flank for a fit has a NaN slope-fit angle.
+    """
+    top = pos[:, 2] + half_thickness
+    r = np.hypot(pos[:, 0], pos[:, 1])
+    profile = []
+    for lo in np.arange(0.0, r.max() + ring_width, ring_width):
+        ring = (r >= lo) & (r < lo + ring_width)
+        if ring.any():
+            profile.append((lo + ring_width / 2, top[ring].max()))
+    profile = np.array(profile)
+    height = float(profile[:, 1].max())
+    layer = 2 * float(np.median(half_thickness))
+    # the base ends where the surface drops to a single layer of grains
+    beyond = np.flatnonzero(profile[:, 1] < 1.5 * layer)
+    base = float(profile[beyond[0], 0] if beyond.size else profile[-1, 0])
+    # heights above the single layer that covers the floor: a heap one grain high has no slope
+    rise = max(0.0, height - layer)
+    angle_hb = math.degrees(math.atan2(rise, base))
+    above = profile[:, 1] - layer
+    flank = (above > 0.2 * rise) & (above < 0.85 * rise) & (profile[:, 0] <= base)
+    angle_fit = float("nan")
+    if flank.sum() >= 3:
+        slope = np.polyfit(profile[flank, 0], profile[flank, 1], 1)[0]
+        angle_fit = math.degrees(math.atan(max(0.0, -slope)))
+    return height, base, angle_hb, angle_fit

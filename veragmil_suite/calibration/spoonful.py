@@ -1,0 +1,77 @@
+"""A level spoonful: grains poured onto the task's spoon held level, struck off at the rim, weighed.
+
+The real value it answers to is the spoon's volume times the food's measured bulk density; the simulated one counts
+the grains the spoon really holds (grains the size of the spoon's depth pack worse than in bulk, as real ones do).
+"""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+
+import mujoco
+import numpy as np
+from robosuite.utils.mjcf_utils import array_to_string
+
+from veragmil_suite.calibration.lifting_cylinder import REST_SPEED_M_S
+from veragmil_suite.foods import SPOON_SURFACE, FoodSpec
+from veragmil_suite.models import contact_groups
+from veragmil_suite.models.dish import DishShape
+from veragmil_suite.models.grains import GrainPile
+from veragmil_suite.models.scoop_task import PHYSICS_SOLVER_OPTIONS, PHYSICS_TIMESTEP_S
+from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
+
+RIM_HEIGHT_M = 0.05  # the spoon's rim plane above the table
+
+
+def dish_volume_m3(shape: DishShape) -> float:
+    """Volume below the rim plane of a dish whose elliptic cross-section widens linearly from floor to rim."""
+    a1, b1 = shape.rim_semi_axes
+    a0, b0 = shape.floor_semi_axes
+    mean_area = a0 * b0 + (a0 * (b1 - b0) + b0 * (a1 - a0)) / 2 + (a1 - a0) * (b1 - b0) / 3
+    return math.pi * shape.depth * mean_area
+
+
+def level_spoonful_g(
+    food: FoodSpec, physics: str, seed: int = 0, solver_options: dict | None = None, max_settle_s: float = 6.0
+) -> tuple[float, int]:
+    """Grams (and grains) a level spoonful of ``food`` holds: twice the spoon's volume poured, struck off at the rim."""
+    grain = food.grain(physics)
+    n = max(6, int(2.0 * dish_volume_m3(SPOON_SHAPE) * 0.6 / grain.piece_volume_m3()))
+    pile = GrainPile(food, n, np.random.default_rng(seed), physics=physics)
+    option = {**PHYSICS_SOLVER_OPTIONS[physics], **(solver_options or {})}
+    root = ET.Element("mujoco", model="spoonful")
+    opt = ET.SubElement(root, "option", timestep=repr(PHYSICS_TIMESTEP_S), **{k: str(v) for k, v in option.items()})
+    ET.SubElement(opt, "flag", eulerdamp="disable")
+    world = ET.SubElement(root, "worldbody")
+    floor = ET.SubElement(world, "geom", name="floor", type="box", pos="0 0 -0.01", size="0.5 0.5 0.01")
+    for key, value in contact_groups.SUPPORT.items():
+        floor.set(key, str(value))
+    spoon = ET.SubElement(world, "body", name="spoon", pos=f"0 0 {RIM_HEIGHT_M}")
+    for g in SPOON_SHAPE.geoms():
+        geom = ET.SubElement(spoon, "geom", name="spoon_" + g["name"], type=g["type"])
+        geom.set("size", array_to_string(g["size"]))
+        geom.set("pos", array_to_string(g["pos"]))
+        geom.set("quat", array_to_string(g["quat"]))
+        geom.set("friction", array_to_string((SPOON_SURFACE.friction, 0.005, 0.0001)))
+        for key, value in contact_groups.SHELL.items():
+            geom.set(key, str(value))
+    for body in pile.bodies():
+        world.append(body)
+    model = mujoco.MjModel.from_xml_string(ET.tostring(root, encoding="unicode"))
+    data = mujoco.MjData(model)
+    adr = np.array([model.joint(j).qposadr[0] for j in pile.joint_names])
+    rim = np.array([0.0, 0.0, RIM_HEIGHT_M])
+    data.qpos[adr[:, None] + np.arange(7)] = pile.lattice_qpos(SPOON_SHAPE, rim_center=rim)
+    ids = np.array([model.body(b).id for b in pile.body_names])
+    while data.time < max_settle_s:
+        mujoco.mj_step(model, data, nstep=24)
+        speed = np.linalg.norm(data.cvel[ids, 3:], axis=1)
+        if not np.isfinite(speed).all():
+            raise RuntimeError("the grains blew up on the spoon (non-finite velocities)")
+        if data.time > 0.5 and speed.max() < REST_SPEED_M_S:
+            break
+    pos = data.xpos[ids]
+    a, b = SPOON_SHAPE.rim_semi_axes
+    held = ((pos[:, 0] / a) ** 2 + (pos[:, 1] / b) ** 2 <= 1.0) & (pos[:, 2] <= RIM_HEIGHT_M)
+    return float(model.body_mass[ids][held].sum() * 1000.0), int(held.sum())

@@ -1,0 +1,107 @@
+"""Settled piles stay still: many piles per food settled as the task settles them, then watched at rest.
+
+Each pile is a new draw of grain sizes and lattice (seeded), settled by veragmil_suite.settling in its standalone
+model (table, bowl, grains), then run a further ``watch_s`` seconds with sleeping off, which must move no grain
+more than CREEP_LIMIT_M, leave every grain inside the bowl and raise no physics error.
+
+    python -m veragmil_suite.calibration.stability --foods rice --settles 100 \
+        --jsonl results/calibration/stability.jsonl
+
+Rows are appended per pile; a rerun skips the (food, physics, seed) rows already in the file, so a long run resumes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from veragmil_suite.foods import FOODS, PHYSICS
+from veragmil_suite.models.bowl import Bowl
+from veragmil_suite.models.grains import GrainPile
+from veragmil_suite.models.scoop_task import PHYSICS_SOLVER_OPTIONS, PHYSICS_TIMESTEP_S
+from veragmil_suite.settling import _simulate, pile_model_xml
+
+CREEP_LIMIT_M = 5e-4  # a grain of a pile at rest moves less than this over the watch
+
+
+def settle_and_watch(food: str, physics: str, seed: int, watch_s: float = 2.0) -> dict:
+    """One pile of the default grain count: settle it, watch it, report its creep, escapes and errors."""
+    spec = FOODS[food]
+    pile = GrainPile(spec, spec.grain(physics).default_grains, np.random.default_rng(seed), physics=physics)
+    bowl = Bowl(name="bowl")
+    option = PHYSICS_SOLVER_OPTIONS[physics]
+    xml = pile_model_xml(bowl, pile, option, PHYSICS_TIMESTEP_S)
+    row = {"food": food, "physics": physics, "seed": seed}
+    start = time.perf_counter()
+    try:
+        settled = _simulate(xml, bowl, pile)
+    except RuntimeError as e:
+        return {**row, "error": str(e), "wall_s": time.perf_counter() - start}
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    bowl_adr = model.joint(bowl.joints[0]).qposadr[0]
+    adr = np.array([model.joint(j).qposadr[0] for j in pile.joint_names])
+    data.qpos[bowl_adr : bowl_adr + 7] = settled.bowl_qpos
+    data.qpos[adr[:, None] + np.arange(7)] = settled.grain_qpos
+    mujoco.mj_forward(model, data)
+    before = settled.grain_qpos[:, :3].copy()
+    mujoco.mj_step(model, data, nstep=int(round(watch_s / model.opt.timestep)))
+    after = data.qpos[adr[:, None] + np.arange(3)]
+    rel = after[:, :2] - data.qpos[bowl_adr : bowl_adr + 2]
+    escaped = int((np.hypot(rel[:, 0], rel[:, 1]) > min(bowl.shape.rim_semi_axes)).sum())
+    creep = float(np.linalg.norm(after - before, axis=1).max()) if np.isfinite(after).all() else float("inf")
+    return {
+        **row,
+        "error": "" if np.isfinite(after).all() else "non-finite state while watching",
+        "settle_time_s": settled.settle_time_s,
+        "settle_speed_m_s": settled.max_speed_m_s,
+        "max_creep_m": creep,
+        "escaped": escaped,
+        "still": creep < CREEP_LIMIT_M and escaped == 0,
+        "wall_s": time.perf_counter() - start,
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m veragmil_suite.calibration.stability", description=__doc__)
+    parser.add_argument("--foods", nargs="+", choices=sorted(FOODS), default=sorted(FOODS), metavar="FOOD")
+    parser.add_argument("--physics", choices=PHYSICS, default="calibrated")
+    parser.add_argument("--settles", type=int, default=100, help="piles per food")
+    parser.add_argument("--jsonl", type=Path, required=True, help="rows are appended here; a rerun resumes")
+    args = parser.parse_args(argv)
+    if args.settles < 1:
+        print(f"--settles must be a count of at least 1, got {args.settles}", file=sys.stderr)
+        return 2
+    done = set()
+    if args.jsonl.exists():
+        for line in args.jsonl.read_text().splitlines():
+            r = json.loads(line)
+            done.add((r["food"], r["physics"], r["seed"]))
+    args.jsonl.parent.mkdir(parents=True, exist_ok=True)
+    for food in args.foods:
+        for seed in range(args.settles):
+            if (food, args.physics, seed) in done:
+                continue
+            row = settle_and_watch(food, args.physics, seed)
+            with args.jsonl.open("a") as f:
+                f.write(json.dumps(row) + "\n")
+    rows = [json.loads(line) for line in args.jsonl.read_text().splitlines()]
+    for food in args.foods:
+        mine = [r for r in rows if r["food"] == food and r["physics"] == args.physics]
+        still = sum(bool(r.get("still")) for r in mine)
+        errors = sum(bool(r["error"]) for r in mine)
+        creep = max((r.get("max_creep_m", 0.0) for r in mine), default=0.0)
+        print(
+            f"{food:<10} {args.physics}: {still}/{len(mine)} still, {errors} errors, worst creep {creep * 1000:.2f} mm"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
