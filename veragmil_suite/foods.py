@@ -54,6 +54,7 @@ SHAPES = ("capsule", "sphere", "ellipsoid", "box", "sphere_pair", "sphere_chain"
 # veragmil_suite.models.scoop_task.PHYSICS_SOLVER_OPTIONS). "table1" reproduces every result made before calibration.
 PHYSICS: tuple[str, ...] = ("calibrated", "table1")
 DEFAULT_PHYSICS = "calibrated"
+PRE_CALIBRATION_PHYSICS = "table1"  # what datasets, checkpoints and results that name no physics were made with
 
 
 def check_physics(physics: str) -> str:

@@ -39,6 +39,7 @@ import robosuite
 import veragmil_suite
 from veragmil_suite import robomimic_obs
 from veragmil_suite.environments.scoop import StageTracker
+from veragmil_suite.foods import DEFAULT_PHYSICS, PRE_CALIBRATION_PHYSICS
 
 ENV_NAME = "ScoopGranular"
 ROBOSUITE_ENV_TYPE = 1  # robomimic's EnvType.ROBOSUITE_TYPE
@@ -77,6 +78,12 @@ class DatasetError(ValueError):
 # ---------------------------------------------------------------------------------------------------------------- #
 
 
+def with_recorded_physics(env_kwargs: dict) -> dict:
+    """Stored env kwargs with their physics named: metadata that names none was written before the physics had a
+    name, on the paper's Table I grains ("table1")."""
+    return env_kwargs if "physics" in env_kwargs else {**env_kwargs, "physics": PRE_CALIBRATION_PHYSICS}
+
+
 def env_meta(env_kwargs: dict) -> dict:
     """robomimic's env metadata (``data`` attribute ``env_args``) for ScoopGranular made with ``env_kwargs``.
 
@@ -84,6 +91,7 @@ def env_meta(env_kwargs: dict) -> dict:
     them back to it); they must be JSON-serializable (a catalog food name, not a FoodSpec).
     """
     kwargs = {k: v for k, v in env_kwargs.items() if k not in ("env_name", "seed")}
+    kwargs.setdefault("physics", DEFAULT_PHYSICS)  # stored by name, so a later default cannot change it
     try:
         json.dumps(kwargs)
     except TypeError as e:
