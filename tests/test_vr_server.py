@@ -2,6 +2,7 @@
 
 import asyncio
 import json
+import logging
 import math
 import os
 import resource
@@ -587,3 +588,25 @@ def test_each_address_is_held_to_its_connection_rate():
         srv.stop()
     assert VRServer(VRServerOptions(host="0.0.0.0", port=0)).connect_rate == 5.0  # open to the network: limited
     assert math.isinf(VRServer(VRServerOptions(port=0)).connect_rate)  # loopback: every client is 127.0.0.1
+
+
+def test_malformed_requests_are_counted_and_summed_up_not_logged_each(server, caplog):
+    requests = [
+        b"GET / HTTP/1.1\r\nHost: localhost\r\nBad Header Line\r\n\r\n",
+        b"\x16\x03\x01\x00\xa5\x01\x00\x00\xa1\x03\x03" + bytes(32) + b"\r\n\r\n",  # TLS to the HTTP port
+        b"GET / HTTP/1.1\r\nHost: localhost\r\nContent-Length: -5\r\n\r\n",
+        b"G\x00T / HTTP/1.1\r\n\r\n",
+    ]
+    with caplog.at_level(logging.DEBUG):
+        for i in range(200):
+            with socket.create_connection(("127.0.0.1", server.port), timeout=5) as s:
+                s.sendall(requests[i % len(requests)])
+                assert s.recv(4096).startswith(b"HTTP/1.")  # answered (400), not left hanging
+        c = Client(server.url).connect()  # the server still serves the page
+        assert c.welcome is not None
+        c.close()
+        assert wait_for(lambda: server.stats()["malformed_http"] == 200)
+        server.stop()
+    assert not [r for r in caplog.records if r.exc_info]
+    summaries = [r for r in caplog.records if r.name == "veragmil_suite.devices.vr_server"]
+    assert len(summaries) == 1 and "malformed_http 200" in summaries[0].getMessage()

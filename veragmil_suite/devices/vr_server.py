@@ -16,8 +16,8 @@ rebinding).
 Connections are admitted by ``vr_connections``: at most ``max_connections`` open, TLS handshakes included, and a
 slot of its own for the operator's authenticated WebSocket; at the cap a new connection replaces the oldest one not
 in a request (else the oldest other one), so the operator always gets in; each address is held to a connection
-rate when the server is open to the network; and refusals, evictions and timeouts are counted and summed up in one
-log line every ``SUMMARY_INTERVAL_S`` at most, never logged one traceback each.
+rate when the server is open to the network; and refusals, evictions, timeouts and malformed HTTP requests are
+counted and summed up in one log line every ``SUMMARY_INTERVAL_S`` at most, never logged one traceback each.
 
 Camera frames are sent newest-first: the server keeps only the latest frame, and a connection still busy sending
 the previous one skips to whatever is newest when it is done (``frames_skipped``).
@@ -41,6 +41,7 @@ from pathlib import Path
 from urllib.parse import urlsplit
 
 from aiohttp import WSCloseCode, WSMsgType, web
+from aiohttp.http_exceptions import HttpProcessingError
 
 from veragmil_suite.devices import vr_tls
 from veragmil_suite.devices.vr_connections import ConnectionPool
@@ -72,7 +73,7 @@ REQUEST_TIMEOUT_S = 10.0
 # new connections a second from one address, after a burst of MAX_CONNECTIONS, on a server open to the network (a
 # page makes a handful on loading, one a second while reconnecting); over it they are closed on accept
 CONNECT_RATE = 5.0
-# seconds between two log lines that sum up refused, evicted and timed-out connections
+# seconds between two log lines that sum up refused, evicted and timed-out connections and malformed requests
 SUMMARY_INTERVAL_S = 10.0
 # seconds a WebSocket client may stay silent (it answers the server's pings every PING_INTERVAL_S) before the
 # connection is taken for half-open (Wi-Fi gone without a FIN) and dropped, so that a reconnection finds a free slot
@@ -109,6 +110,7 @@ COUNTERS = (
     "evicted",  # TCP connections closed to make room for a newer one at the cap
     "idle_closed",  # TCP connections without a TLS handshake and a request's headers within the request timeout
     "tls_failed",  # TLS handshakes that failed or were abandoned by the client
+    "malformed_http",  # requests that were not HTTP or not valid HTTP (answered 400, connection closed)
     "accept_failed",  # accepts that failed for want of file descriptors or memory
     "heartbeat_timeouts",  # WebSocket clients silent for the heartbeat timeout (half-open), dropped
     "frames_published",
@@ -118,7 +120,22 @@ COUNTERS = (
 )
 # what the periodic summary reports; a line at WARNING when any but the last two happened (a browser's untrusted
 # certificate and its unused spare connections are routine), at INFO otherwise
-SUMMARIZED = ("refused_busy", "refused_rate", "evicted", "accept_failed", "tls_failed", "idle_closed")
+SUMMARIZED = ("refused_busy", "refused_rate", "evicted", "malformed_http", "accept_failed", "tls_failed", "idle_closed")
+
+
+class _RequestLog(logging.LoggerAdapter):
+    """aiohttp's server log, with malformed requests counted instead of logged: a traceback each would let any
+    client fill the terminal before its token is ever checked."""
+
+    def __init__(self, note: Callable[[str], None]):
+        super().__init__(logging.getLogger("aiohttp.server"), {})
+        self._note = note
+
+    def log(self, level, msg, *args, exc_info=None, **kwargs) -> None:
+        if isinstance(exc_info, HttpProcessingError):
+            self._note("malformed_http")
+        else:
+            super().log(level, msg, *args, exc_info=exc_info, **kwargs)
 
 
 def is_loopback(host: str) -> bool:
@@ -331,6 +348,7 @@ class VRServer:
             access_log=None,
             handle_signals=False,
             keepalive_timeout=self.request_timeout,
+            logger=_RequestLog(self._note),
         )
         await self._runner.setup()
         # TLS is the pool's to start, once a connection is let in
@@ -431,8 +449,8 @@ class VRServer:
 
     # ------------------------------------------------------------------ refusals, summed up
     def _note(self, key: str) -> None:
-        """Count a refused, evicted or timed-out connection (server thread); a log line sums them up
-        SUMMARY_INTERVAL_S after the first."""
+        """Count a refused, evicted or timed-out connection or a malformed request (server thread); a log line sums
+        them up SUMMARY_INTERVAL_S after the first."""
         self.count(key)
         self._summarized[key] += 1
         if self._summary is None:
