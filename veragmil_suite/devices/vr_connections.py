@@ -127,7 +127,7 @@ class ConnectionGuard(asyncio.Protocol):
         self._tcp: asyncio.Transport | None = None
         self.transport: asyncio.BaseTransport | None = None  # inner's: the TCP transport, or TLS over it
         self._timer: asyncio.TimerHandle | None = None
-        self._handshake: asyncio.Task | None = None
+        self._handshake: asyncio.Task | None = None  # held: the event loop keeps only a weak reference to tasks
         self._early: list[bytes] = []  # decrypted before inner had its transport
         self._early_eof = False
         self._closed = False
