@@ -2,6 +2,10 @@
 
 import asyncio
 import json
+import logging
+import math
+import os
+import resource
 import socket
 import ssl
 import subprocess
@@ -300,7 +304,7 @@ SERVER_CHILD = """
 import json, resource, sys
 resource.setrlimit(resource.RLIMIT_NOFILE, (1024, 1024))
 from veragmil_suite.devices.vr_server import VRServer, VRServerOptions
-server = VRServer(VRServerOptions(port=0, request_timeout=1.0, heartbeat_timeout=1.0)).start()
+server = VRServer(VRServerOptions(port=0, **json.loads(sys.argv[1]))).start()
 print(server.port, flush=True)
 sys.stdin.readline()
 print(json.dumps(server.stats()), flush=True)
@@ -308,20 +312,95 @@ server.stop()
 """
 
 
-def test_idle_and_half_open_clients_cannot_starve_the_operator():
-    """1,100 idle sockets against a server limited to 1,024 files: refused beyond its connection limit or closed
-    when idle, never "Too many open files"; the operator's page still connects; a silent client is dropped."""
-    child = subprocess.Popen(
-        [sys.executable, "-c", SERVER_CHILD], stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        text=True,
-    )  # fmt: skip
-    sockets = []
+class ServerChild:
+    """A VR server in a process limited to 1,024 files, and the sockets a test opens to it; leaving the ``with``
+    closes them and kills the server if it was not stopped. Its stderr goes to a file (a pipe would fill up)."""
+
+    def __init__(self, tmp_path, **options):
+        self.err = open(tmp_path / "server.err", "w+")
+        self.process = subprocess.Popen(
+            [sys.executable, "-c", SERVER_CHILD, json.dumps(options)], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+            stderr=self.err, text=True,
+        )  # fmt: skip
+        self.pid = self.process.pid
+        self.port = int(self.process.stdout.readline())
+        self.sockets: list[socket.socket] = []
+
+    def stop(self):
+        """The server's counters and everything it wrote to stderr."""
+        self.process.stdin.write("stop\n")
+        self.process.stdin.flush()
+        stats = json.loads(self.process.stdout.readline())
+        self.process.communicate(timeout=30)
+        self.err.seek(0)
+        return stats, self.err.read()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        for s in self.sockets:
+            s.close()
+        if self.process.poll() is None:
+            self.process.kill()
+        self.err.close()
+
+
+def open_files(pid):
+    return len(os.listdir(f"/proc/{pid}/fd"))
+
+
+def rss_mb(pid):
+    with open(f"/proc/{pid}/status") as f:
+        return next(int(line.split()[1]) for line in f if line.startswith("VmRSS:")) / 1024
+
+
+def allow_files(n):
+    """Raise this process's soft file limit to n (within the hard one): the floods below hold over 1,024 sockets."""
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    if soft != resource.RLIM_INFINITY and soft < n:
+        resource.setrlimit(resource.RLIMIT_NOFILE, (n if hard == resource.RLIM_INFINITY else min(n, hard), hard))
+
+
+def operator_gets_in(port, tls=False, token=None, hold=0.0, timeout=10.0):
+    """Whether a page (WebSocket, hello) is welcomed within timeout; it stays connected for hold seconds."""
+
+    async def attempt():
+        scheme = "wss" if tls else "ws"
+        async with aiohttp.ClientSession(timeout=aiohttp.ClientTimeout(total=timeout + hold)) as s:
+            async with s.ws_connect(f"{scheme}://127.0.0.1:{port}/ws", ssl=False if tls else True) as ws:
+                await ws.send_str(json.dumps({"v": 1, "type": "hello", "token": token}))
+                welcome = await ws.receive(timeout=timeout)
+                if welcome.type != aiohttp.WSMsgType.TEXT or json.loads(welcome.data)["type"] != "welcome":
+                    return False
+                end = time.monotonic() + hold
+                while (left := end - time.monotonic()) > 0:  # answer pings, as the page does
+                    try:
+                        msg = await ws.receive(timeout=left)
+                    except asyncio.TimeoutError:
+                        break
+                    if msg.type == aiohttp.WSMsgType.TEXT and json.loads(msg.data)["type"] == "ping":
+                        await ws.send_str(json.dumps({"v": 1, "type": "pong", "id": json.loads(msg.data)["id"]}))
+                    elif msg.type != aiohttp.WSMsgType.TEXT:
+                        return False
+                return True
+
     try:
-        port = int(child.stdout.readline())
+        return asyncio.run(attempt())
+    except (aiohttp.ClientError, asyncio.TimeoutError, OSError):
+        return False
+
+
+def test_idle_and_half_open_clients_cannot_starve_the_operator(tmp_path):
+    """1,100 idle sockets against a server limited to 1,024 files: evicted for newer ones or closed when idle, never
+    "Too many open files"; the operator's page still connects; a silent client is dropped."""
+    allow_files(4096)
+    with ServerChild(tmp_path, request_timeout=1.0, heartbeat_timeout=1.0) as child:
+        port = child.port
         url = f"http://localhost:{port}/"
         for _ in range(1100):
             try:
-                sockets.append(socket.create_connection(("127.0.0.1", port), timeout=2))
+                child.sockets.append(socket.create_connection(("127.0.0.1", port), timeout=2))
             except OSError:
                 pass  # refused under load: as good as closed
         start = time.monotonic()
@@ -345,16 +424,189 @@ def test_idle_and_half_open_clients_cannot_starve_the_operator():
                     return ws.closed
 
         assert asyncio.run(silent_client())
-        child.stdin.write("stop\n")
-        child.stdin.flush()
-        stats = json.loads(child.stdout.readline())
-        _, err = child.communicate(timeout=30)
+        stats, err = child.stop()
+    assert waited < 5.0  # held up by the request timeout (1 s), not by the 1,100 sockets
+    assert stats["evicted"] + stats["idle_closed"] >= 1000
+    assert stats["idle_closed"] >= 1 and stats["heartbeat_timeouts"] >= 1
+    assert "Too many open files" not in err and "Traceback" not in err
+
+
+def client_hello():
+    """The first flight of a TLS client: a ClientHello, whose handshake the floods below never continue."""
+    ctx = ssl.create_default_context()
+    ctx.check_hostname, ctx.verify_mode = False, ssl.CERT_NONE
+    tls = ctx.wrap_bio(ssl.MemoryBIO(), outgoing := ssl.MemoryBIO(), server_side=False, server_hostname="localhost")
+    with pytest.raises(ssl.SSLWantReadError):
+        tls.do_handshake()
+    return outgoing.read()
+
+
+def test_unfinished_tls_handshakes_count_against_the_cap(tmp_path):
+    """1,100 connections that start a TLS handshake and never finish it, against an HTTPS server limited to 1,024
+    files: each counts from its accept, so the server holds a few dozen files and little memory, logs counts rather
+    than a traceback per connection, and the operator's page gets in while they are held."""
+    allow_files(4096)
+    hello = client_hello()
+    options = dict(token="K7QM-2XPA", tls=True, cert_dir=str(tmp_path), request_timeout=5.0, connect_rate=math.inf)
+    with ServerChild(tmp_path, **options) as child:
+        peak_files, rss_before, peak_rss = 0, rss_mb(child.pid), 0.0
+        for i in range(1101):
+            if i % 25 == 0:
+                peak_files, peak_rss = max(peak_files, open_files(child.pid)), max(peak_rss, rss_mb(child.pid))
+            if i == 1100:
+                break
+            try:
+                child.sockets.append(socket.create_connection(("127.0.0.1", child.port), timeout=5))
+                child.sockets[-1].sendall(hello)
+            except OSError:
+                pass  # closed already for a newer one
+        admitted = operator_gets_in(child.port, tls=True, token="K7QM-2XPA")
+        stats, err = child.stop()
+    assert admitted
+    assert peak_files < 300  # before: 1,024, the limit (32 connections, and sockets accepted and not yet closed)
+    assert peak_rss - rss_before < 100  # before: +300 MB (a 256 KiB buffer per handshake)
+    assert stats["evicted"] >= 1000 and stats["connections"] == 1
+    assert "Traceback" not in err and "Too many open files" not in err
+    summaries = [line for line in err.splitlines() if "VR server, connections refused or closed early" in line]
+    assert 1 <= len(summaries) <= 3 and len(err.splitlines()) <= len(summaries) + 8  # a line per 10 s, not per socket
+
+
+ATTACKER = """
+import asyncio, sys, time
+port, seconds = int(sys.argv[1]), float(sys.argv[2])
+
+async def main():  # 32 idle connections, each reopened as soon as the server closes it
+    loop = asyncio.get_running_loop()
+    end = time.monotonic() + seconds
+
+    class Idle(asyncio.Protocol):
+        def connection_lost(self, exc):
+            if time.monotonic() < end:
+                loop.create_task(reopen())
+
+    async def reopen():
+        while time.monotonic() < end:
+            try:
+                await loop.create_connection(Idle, "127.0.0.1", port)
+                return
+            except OSError:
+                await asyncio.sleep(0.01)
+
+    await asyncio.gather(*(reopen() for _ in range(32)))
+    print("held", flush=True)
+    await asyncio.sleep(max(0.0, end - time.monotonic()))
+
+asyncio.run(main())
+"""
+
+
+def test_the_operator_gets_in_past_idle_connections_that_one_client_keeps_reopening(tmp_path):
+    """32 idle connections (the whole cap) that a client reopens as soon as they are closed: each of the operator's
+    tries gets in (before: 1 of 8), and once connected it has a slot of its own, so the client's reopening stops
+    evicting anyone."""
+    with ServerChild(tmp_path, request_timeout=3.0) as child:
+        attacker = subprocess.Popen(
+            [sys.executable, "-c", ATTACKER, str(child.port), "60"], stdout=subprocess.PIPE, text=True
+        )  # stops by itself after 60 s at most
+        try:
+            assert attacker.stdout.readline().strip() == "held"
+            tries = [operator_gets_in(child.port) for _ in range(3)]
+            tries.append(operator_gets_in(child.port, hold=3.0))  # connected 3 s while the client reopens what closes
+        finally:
+            attacker.kill()
+            attacker.communicate(timeout=30)
+        stats, err = child.stop()
+    assert tries == [True] * 4
+    # each try pushes out one idle connection, whose reopening pushes out the next only until the page has
+    # authenticated; without its own slot the connected page would keep the reopening going for all 3 s
+    assert stats["evicted"] < 500 and stats["connections"] == 4
+    assert "Traceback" not in err
+
+
+def test_eviction_takes_the_oldest_connection_not_in_a_request_and_never_the_operator():
+    srv = VRServer(VRServerOptions(port=0, max_connections=4, hello_timeout=30.0, request_timeout=30.0)).start()
+    upgrade = (
+        f"GET /ws HTTP/1.1\r\nHost: localhost:{srv.port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+        "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n"
+    ).encode()
+
+    def waiting_for_hello():  # a WebSocket that has not said hello: a request being handled
+        s = socket.create_connection(("127.0.0.1", srv.port), timeout=5)
+        s.sendall(upgrade)
+        assert s.recv(4096).startswith(b"HTTP/1.1 101")
+        return s
+
+    def is_open(s):
+        s.settimeout(0.0)
+        try:
+            return s.recv(1) != b""
+        except BlockingIOError:
+            return True
+        except OSError:
+            return False
+
+    operator = Client(srv.url).connect()
+    sockets = []
+    try:
+        assert operator.welcome is not None
+        pending = [waiting_for_hello() for _ in range(2)]
+        idle = [socket.create_connection(("127.0.0.1", srv.port), timeout=5) for _ in range(5)]
+        sockets += pending + idle
+        # 4 slots besides the operator's: 2 pending, then each idle one pushes out the idle one before it
+        assert wait_for(lambda: srv.stats()["evicted"] == 3 and srv.open_connections == 5)
+        assert wait_for(lambda: [is_open(s) for s in idle] == [False, False, False, True, True])
+        later = [waiting_for_hello() for _ in range(3)]  # push out the 2 idle ones, then the oldest pending
+        sockets += later
+        assert wait_for(lambda: srv.stats()["evicted"] == 6)
+        assert wait_for(
+            lambda: [is_open(s) for s in pending + idle[3:] + later] == [False, True] + [False] * 2 + [True] * 3
+        )
+        assert srv.connected and operator.close_code is None  # the operator was never a candidate
+        operator.send(pose_message(0, 0.0))
+        assert wait_for(lambda: srv.stats()["accepted"] == 1)
+    finally:
+        operator.close()
+        for s in sockets:
+            s.close()
+        srv.stop()
+
+
+def test_each_address_is_held_to_its_connection_rate():
+    srv = VRServer(VRServerOptions(port=0, max_connections=4, connect_rate=0.5)).start()
+    sockets = []
+    try:
+        start = time.monotonic()
+        for _ in range(10):
+            sockets.append(socket.create_connection(("127.0.0.1", srv.port), timeout=5))
+        elapsed = time.monotonic() - start
+        # a burst of 4, then one every 2 s: the rest were closed as soon as they were accepted
+        assert wait_for(lambda: srv.stats()["refused_rate"] >= 10 - 4 - math.ceil(0.5 * elapsed) - 1)  # 1: lag
+        assert srv.stats()["refused_rate"] <= 6
     finally:
         for s in sockets:
             s.close()
-        if child.poll() is None:
-            child.kill()
-    assert waited < 5.0  # held up by the request timeout (1 s), not by the 1,100 sockets
-    assert stats["refused_busy"] + stats["idle_closed"] >= 1000
-    assert stats["idle_closed"] >= 1 and stats["heartbeat_timeouts"] >= 1
-    assert "Too many open files" not in err and "Traceback" not in err
+        srv.stop()
+    assert VRServer(VRServerOptions(host="0.0.0.0", port=0)).connect_rate == 5.0  # open to the network: limited
+    assert math.isinf(VRServer(VRServerOptions(port=0)).connect_rate)  # loopback: every client is 127.0.0.1
+
+
+def test_malformed_requests_are_counted_and_summed_up_not_logged_each(server, caplog):
+    requests = [
+        b"GET / HTTP/1.1\r\nHost: localhost\r\nBad Header Line\r\n\r\n",
+        b"\x16\x03\x01\x00\xa5\x01\x00\x00\xa1\x03\x03" + bytes(32) + b"\r\n\r\n",  # TLS to the HTTP port
+        b"GET / HTTP/1.1\r\nHost: localhost\r\nContent-Length: -5\r\n\r\n",
+        b"G\x00T / HTTP/1.1\r\n\r\n",
+    ]
+    with caplog.at_level(logging.DEBUG):
+        for i in range(200):
+            with socket.create_connection(("127.0.0.1", server.port), timeout=5) as s:
+                s.sendall(requests[i % len(requests)])
+                assert s.recv(4096).startswith(b"HTTP/1.")  # answered (400), not left hanging
+        c = Client(server.url).connect()  # the server still serves the page
+        assert c.welcome is not None
+        c.close()
+        assert wait_for(lambda: server.stats()["malformed_http"] == 200)
+        server.stop()
+    assert not [r for r in caplog.records if r.exc_info]
+    summaries = [r for r in caplog.records if r.name == "veragmil_suite.devices.vr_server"]
+    assert len(summaries) == 1 and "malformed_http 200" in summaries[0].getMessage()

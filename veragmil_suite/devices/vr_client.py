@@ -180,6 +180,8 @@ class Client:
             self._run(_close())
             self._loop.call_soon_threadsafe(self._loop.stop)
             self._thread.join(5)
+        if not self._loop.is_running() and not self._loop.is_closed():
+            self._loop.close()  # else the garbage collector closes it, by then perhaps after its own sockets
 
 
 def main(argv: list[str] | None = None) -> None:

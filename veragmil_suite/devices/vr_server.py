@@ -13,6 +13,12 @@ open in the operator's browser cannot drive the robot through localhost; and a s
 only requests addressed to localhost, so no site can reach it by pointing its own name at 127.0.0.1 (DNS
 rebinding).
 
+Connections are admitted by ``vr_connections``: at most ``max_connections`` open, TLS handshakes included, and a
+slot of its own for the operator's authenticated WebSocket; at the cap a new connection replaces the oldest one not
+in a request (else the oldest other one), so the operator always gets in; each address is held to a connection
+rate when the server is open to the network; and refusals, evictions, timeouts and malformed HTTP requests are
+counted and summed up in one log line every ``SUMMARY_INTERVAL_S`` at most, never logged one traceback each.
+
 Camera frames are sent newest-first: the server keeps only the latest frame, and a connection still busy sending
 the previous one skips to whatever is newest when it is done (``frames_skipped``).
 """
@@ -24,6 +30,7 @@ import collections
 import hmac
 import ipaddress
 import logging
+import math
 import re
 import secrets
 import threading
@@ -34,8 +41,10 @@ from pathlib import Path
 from urllib.parse import urlsplit
 
 from aiohttp import WSCloseCode, WSMsgType, web
+from aiohttp.http_exceptions import HttpProcessingError
 
 from veragmil_suite.devices import vr_tls
+from veragmil_suite.devices.vr_connections import ConnectionPool
 from veragmil_suite.devices.vr_protocol import (
     MAX_MESSAGE_BYTES,
     HelloMessage,
@@ -55,11 +64,17 @@ TOKEN_ALPHABET = "ABCDEFGHJKLMNPQRSTUVWXYZ23456789"  # no 0/O, 1/I: typed on a h
 AUTH_MAX_FAILURES = 5
 AUTH_WINDOW_S = 60.0
 PING_INTERVAL_S = 1.0
-# open TCP connections at most (the page needs one WebSocket and a few HTTP fetches): beyond it a connection is
-# closed as soon as it is accepted, so idle sockets cannot use up the process's file descriptors
+# open TCP connections at most, TLS handshakes included (the page needs one WebSocket and a few HTTP fetches): at it
+# a new connection replaces an older one, so idle sockets cannot use up the process's file descriptors
 MAX_CONNECTIONS = 32
-# seconds a new connection has to send its first bytes (or finish a TLS handshake) and an HTTP keep-alive may idle
+# seconds a new connection has to finish its TLS handshake and send its first request's headers, and an HTTP
+# keep-alive may idle
 REQUEST_TIMEOUT_S = 10.0
+# new connections a second from one address, after a burst of MAX_CONNECTIONS, on a server open to the network (a
+# page makes a handful on loading, one a second while reconnecting); over it they are closed on accept
+CONNECT_RATE = 5.0
+# seconds between two log lines that sum up refused, evicted and timed-out connections and malformed requests
+SUMMARY_INTERVAL_S = 10.0
 # seconds a WebSocket client may stay silent (it answers the server's pings every PING_INTERVAL_S) before the
 # connection is taken for half-open (Wi-Fi gone without a FIN) and dropped, so that a reconnection finds a free slot
 HEARTBEAT_TIMEOUT_S = 5.0
@@ -90,62 +105,37 @@ COUNTERS = (
     "forbidden_origin",  # WebSocket opened from another site's page
     "forbidden_host",  # a localhost server asked under another name (DNS rebinding)
     "superseded",  # connections closed because a newer one authenticated
-    "refused_busy",  # TCP connections closed at once: MAX_CONNECTIONS were open
-    "idle_closed",  # TCP connections that sent nothing within the request timeout
+    "refused_busy",  # TCP connections closed at once: the cap reached and no connection to evict
+    "refused_rate",  # TCP connections closed at once: their address over its connection rate
+    "evicted",  # TCP connections closed to make room for a newer one at the cap
+    "idle_closed",  # TCP connections without a TLS handshake and a request's headers within the request timeout
+    "tls_failed",  # TLS handshakes that failed or were abandoned by the client
+    "malformed_http",  # requests that were not HTTP or not valid HTTP (answered 400, connection closed)
+    "accept_failed",  # accepts that failed for want of file descriptors or memory
     "heartbeat_timeouts",  # WebSocket clients silent for the heartbeat timeout (half-open), dropped
     "frames_published",
     "frames_sent",
     "frames_skipped",
     "status_sent",
 )
+# what the periodic summary reports; a line at WARNING when any but the last two happened (a browser's untrusted
+# certificate and its unused spare connections are routine), at INFO otherwise
+SUMMARIZED = ("refused_busy", "refused_rate", "evicted", "malformed_http", "accept_failed", "tls_failed", "idle_closed")
 
 
-class _ConnectionGuard(asyncio.Protocol):
-    """aiohttp's protocol for one TCP connection, guarded: refused at once beyond the server's connection limit, and
-    closed when it sends nothing within the request timeout."""
+class _RequestLog(logging.LoggerAdapter):
+    """aiohttp's server log, with malformed requests counted instead of logged: a traceback each would let any
+    client fill the terminal before its token is ever checked."""
 
-    def __init__(self, server: VRServer, inner: asyncio.Protocol):
-        self._server, self._inner = server, inner
-        self._timer: asyncio.TimerHandle | None = None
-        self._admitted = False
+    def __init__(self, note: Callable[[str], None]):
+        super().__init__(logging.getLogger("aiohttp.server"), {})
+        self._note = note
 
-    def connection_made(self, transport) -> None:
-        server = self._server
-        if server.open_connections >= server.max_connections:
-            server.count("refused_busy")
-            transport.abort()
-            return
-        server.open_connections += 1
-        self._admitted = True
-        self._timer = asyncio.get_running_loop().call_later(server.request_timeout, self._expire, transport)
-        self._inner.connection_made(transport)
-
-    def _expire(self, transport) -> None:
-        self._server.count("idle_closed")
-        transport.abort()
-
-    def data_received(self, data: bytes) -> None:
-        if self._timer is not None:
-            self._timer.cancel()
-            self._timer = None
-        self._inner.data_received(data)
-
-    def eof_received(self):
-        return self._inner.eof_received()
-
-    def pause_writing(self) -> None:
-        self._inner.pause_writing()
-
-    def resume_writing(self) -> None:
-        self._inner.resume_writing()
-
-    def connection_lost(self, exc) -> None:
-        if self._timer is not None:
-            self._timer.cancel()
-        if self._admitted:
-            self._admitted = False
-            self._server.open_connections -= 1
-            self._inner.connection_lost(exc)
+    def log(self, level, msg, *args, exc_info=None, **kwargs) -> None:
+        if isinstance(exc_info, HttpProcessingError):
+            self._note("malformed_http")
+        else:
+            super().log(level, msg, *args, exc_info=exc_info, **kwargs)
 
 
 def is_loopback(host: str) -> bool:
@@ -191,9 +181,14 @@ class VRServerOptions:
         hello_timeout (float): seconds a new WebSocket connection has to say hello
         auth_failure_delay (float): seconds a wrong pairing token waits for its answer
         web_dir (str or Path): folder of the page's files (``WEB_DIR``)
-        max_connections (int): open TCP connections at most (``MAX_CONNECTIONS``)
-        request_timeout (float): seconds a connection has to send its first bytes or finish a TLS handshake; also
-            the HTTP keep-alive (``REQUEST_TIMEOUT_S``)
+        max_connections (int): open TCP connections at most, TLS handshakes included, besides the operator's
+            authenticated WebSocket (``MAX_CONNECTIONS``)
+        request_timeout (float): seconds a connection has to finish its TLS handshake and send its first request's
+            headers; also the HTTP keep-alive (``REQUEST_TIMEOUT_S``)
+        connect_rate (float or None): new connections a second from one address after a burst of max_connections;
+            None: ``CONNECT_RATE`` when a token is required (the server is open to the network), no limit otherwise
+            (on loopback every client is 127.0.0.1, the headset over USB included: a shared limit would let a local
+            flood hold the operator to its pace); ``math.inf``: no limit
         heartbeat_timeout (float): seconds of silence after which a WebSocket client is taken for gone
             (``HEARTBEAT_TIMEOUT_S``)
     """
@@ -211,6 +206,7 @@ class VRServerOptions:
     web_dir: str | Path = WEB_DIR
     max_connections: int = MAX_CONNECTIONS
     request_timeout: float = REQUEST_TIMEOUT_S
+    connect_rate: float | None = None
     heartbeat_timeout: float = HEARTBEAT_TIMEOUT_S
 
 
@@ -250,7 +246,11 @@ class VRServer:
         self.max_connections = int(options.max_connections)
         self.request_timeout = float(options.request_timeout)
         self.heartbeat_timeout = float(options.heartbeat_timeout)
-        self.open_connections = 0  # TCP connections admitted and not yet closed (the server thread's)
+        default_rate = CONNECT_RATE if self.requires_token else math.inf
+        self.connect_rate = default_rate if options.connect_rate is None else float(options.connect_rate)
+        self._pool: ConnectionPool | None = None
+        self._summarized = collections.Counter()  # SUMMARIZED counts since the last summary (the server thread's)
+        self._summary: asyncio.TimerHandle | None = None
         self._tcp_server: asyncio.AbstractServer | None = None
         self.port: int | None = None
         self.fingerprint: str | None = None
@@ -316,6 +316,7 @@ class VRServer:
     def _run(self, ssl_context) -> None:
         loop = asyncio.new_event_loop()
         asyncio.set_event_loop(loop)
+        loop.set_exception_handler(self._loop_exception)
         self._loop = loop
         try:
             loop.run_until_complete(self._startup(ssl_context))
@@ -336,21 +337,28 @@ class VRServer:
 
     async def _startup(self, ssl_context) -> None:
         self._wake = asyncio.Event()
-        app = web.Application(client_max_size=MAX_MESSAGE_BYTES, middlewares=[self._host_guard])
+        app = web.Application(client_max_size=MAX_MESSAGE_BYTES, middlewares=[self._request_phase, self._host_guard])
         app.router.add_get("/", self._index)
         app.router.add_get("/ws", self._websocket)
         app.router.add_get("/favicon.ico", self._no_icon)
         app.router.add_static("/static/", self.web_dir, show_index=False, follow_symlinks=False)
         app.on_response_prepare.append(self._headers)
-        self._runner = web.AppRunner(app, access_log=None, handle_signals=False, keepalive_timeout=self.request_timeout)
+        self._runner = web.AppRunner(
+            app,
+            access_log=None,
+            handle_signals=False,
+            keepalive_timeout=self.request_timeout,
+            logger=_RequestLog(self._note),
+        )
         await self._runner.setup()
-        handler_factory = self._runner.server  # aiohttp's per-connection protocol factory, behind our guard
+        # TLS is the pool's to start, once a connection is let in
+        self._pool = ConnectionPool(
+            self.max_connections, self.request_timeout, self.connect_rate, ssl_context, self._note
+        )
         self._tcp_server = await asyncio.get_running_loop().create_server(
-            lambda: _ConnectionGuard(self, handler_factory()),
+            self._pool.protocol_factory(self._runner.server),  # aiohttp's per-connection protocol, behind a guard
             self.host,
             self.requested_port,
-            ssl=ssl_context,
-            ssl_handshake_timeout=self.request_timeout if ssl_context is not None else None,
             reuse_address=True,
         )
         self.port = self._tcp_server.sockets[0].getsockname()[1]
@@ -369,6 +377,9 @@ class VRServer:
             self._tcp_server.close()
         if self._runner is not None:
             await self._runner.cleanup()
+        if self._pool is not None:
+            self._pool.close_all()
+        self._log_summary()
 
     # ------------------------------------------------------------------ public, thread-safe
     @property
@@ -407,6 +418,11 @@ class VRServer:
         with self._counts_lock:
             self._counts[key] += n
 
+    @property
+    def open_connections(self) -> int:
+        """TCP connections let in and not yet closed, TLS handshakes included."""
+        return len(self._pool) if self._pool is not None else 0
+
     def publish_frame(self, data: bytes) -> None:
         """Offer a binary camera frame (``vr_protocol.pack_frame``); replaces any frame not yet sent."""
         with self._publish_lock:
@@ -431,6 +447,33 @@ class VRServer:
             except RuntimeError:  # the loop closed between the check and the call: nothing to wake
                 pass
 
+    # ------------------------------------------------------------------ refusals, summed up
+    def _note(self, key: str) -> None:
+        """Count a refused, evicted or timed-out connection or a malformed request (server thread); a log line sums
+        them up SUMMARY_INTERVAL_S after the first."""
+        self.count(key)
+        self._summarized[key] += 1
+        if self._summary is None:
+            self._summary = asyncio.get_running_loop().call_later(SUMMARY_INTERVAL_S, self._log_summary)
+
+    def _log_summary(self) -> None:
+        if self._summary is not None:
+            self._summary.cancel()
+            self._summary = None
+        counts, self._summarized = self._summarized, collections.Counter()
+        if counts:
+            level = logging.WARNING if any(counts[k] for k in SUMMARIZED[:-2]) else logging.INFO
+            text = ", ".join(f"{k} {counts[k]}" for k in SUMMARIZED if counts[k])
+            LOG.log(level, "VR server, connections refused or closed early: %s (%s open at most)", text,
+                    self.max_connections)  # fmt: skip
+
+    def _loop_exception(self, loop: asyncio.AbstractEventLoop, context: dict) -> None:
+        # out of file descriptors, asyncio pauses accepting for a second and reports each time: counted instead
+        if context.get("message") == "socket.accept() out of system resource":
+            self._note("accept_failed")
+        else:
+            loop.default_exception_handler(context)
+
     # ------------------------------------------------------------------ HTTP
     async def _headers(self, request: web.Request, response: web.StreamResponse) -> None:
         response.headers["Cache-Control"] = "no-store"
@@ -440,6 +483,18 @@ class VRServer:
         response.headers["Content-Security-Policy"] = (
             f"default-src 'self'; img-src 'self' blob: data:; connect-src 'self'{sockets}; frame-ancestors 'none'"
         )
+
+    @web.middleware
+    async def _request_phase(self, request: web.Request, handler) -> web.StreamResponse:
+        """Tell the connection's guard that a request is in (its deadline kept) and while it is being handled."""
+        guard = self._pool.guard(request.transport)
+        if guard is None:
+            return await handler(request)
+        guard.request_started()
+        try:
+            return await handler(request)
+        finally:
+            guard.request_finished()
 
     @web.middleware
     async def _host_guard(self, request: web.Request, handler) -> web.StreamResponse:
@@ -485,6 +540,9 @@ class VRServer:
         peer = request.remote or "?"
         if not await self._authenticate(ws, peer):
             return ws
+        guard = self._pool.guard(request.transport)
+        if guard is not None:
+            guard.operator = True  # a slot of its own, never evicted
         previous, self._client = self._client, ws
         self._client_id += 1
         cid = self._client_id
@@ -510,6 +568,8 @@ class VRServer:
                     self.count("oversized" if code == WSCloseCode.MESSAGE_TOO_BIG else "malformed")
         finally:
             sender.cancel()
+            if guard is not None:
+                guard.operator = False
             if self._client is ws:
                 self._client = None
                 if self.on_disconnect is not None:
