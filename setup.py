@@ -10,26 +10,23 @@ MUJOCO_VERSION = "3.8.1"
 # the Ray the tests ran with: one version on the driver and every node of a cluster (Ray's own requirement)
 RAY_VERSION = "2.60.0"
 
-# models/assets stays at the repository's top level and is installed as the package data of
-# veragmil_suite.assets (one package per folder), so a non-editable install finds it from any directory.
+# Folders of data installed as packages of their own (setuptools installs data only as a package's files):
+# models/assets and configs/json stay at the repository's top level and become veragmil_suite.assets (one
+# package per folder) and veragmil_suite.configs, so a non-editable install finds them from any directory; the
+# WebXR page's folder has no __init__.py and is the package veragmil_suite.devices.web.
 ASSET_DIRS = sorted(d for d, _, _ in os.walk(os.path.join("models", "assets")))
-ASSET_PACKAGES = {"veragmil_suite.assets" + d[len("models/assets") :].replace(os.sep, "."): d for d in ASSET_DIRS}
+DATA_PACKAGES = {"veragmil_suite.assets" + d[len("models/assets") :].replace(os.sep, "."): d for d in ASSET_DIRS}
+DATA_PACKAGES["veragmil_suite.configs"] = os.path.join("configs", "json")
+WEB_PACKAGE = "veragmil_suite.devices.web"
 
 setup(
     name="veragmil_suite",
     version="0.1.0",
     description="robosuite task plugin for scooping and carrying granular food with a spoon (VERAGMIL on MuJoCo)",
     python_requires=">=3.10",
-    packages=find_packages(include=["veragmil_suite", "veragmil_suite.*"])
-    + ["veragmil_suite.assets", "veragmil_suite.configs"],
-    # models/assets and configs/json stay at the repository's top level and are installed as the package data
-    # of veragmil_suite.assets and veragmil_suite.configs, so a non-editable install finds them from any directory.
-    package_dir={"veragmil_suite.assets": "models/assets", "veragmil_suite.configs": "configs/json"},
-    package_data={
-        "veragmil_suite.assets": ["**/*"],
-        "veragmil_suite.configs": ["*.json"],
-        "veragmil_suite": ["devices/web/**/*"],
-    },
+    packages=[*find_packages(include=["veragmil_suite", "veragmil_suite.*"]), *DATA_PACKAGES, WEB_PACKAGE],
+    package_dir=DATA_PACKAGES,
+    package_data={package: ["*"] for package in [*DATA_PACKAGES, WEB_PACKAGE]},
     include_package_data=True,
     install_requires=[
         "robosuite==1.5.2",
