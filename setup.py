@@ -51,6 +51,16 @@ setup(
         "ray": [f"ray=={RAY_VERSION}"],
         # the Unitree G1 (robots="G1FixedLowerBody" or "G1ArmsOnly"); robosuite imports it when it is installed
         "humanoid": ["robosuite-models==1.0.0"],
+        # lerobot: veragmil-export-lerobot writes LeRobotDatasets with the standalone LeRobotDataset package (no
+        # torch pin, unlike lerobot itself). Beside numpy<2: opencv-python-headless 4.12 and pyarrow 26 need NumPy 2
+        # (pyarrow's metadata does not say so). torchcodec decodes the videos (torchvision 0.28 no longer can); 0.13
+        # is the release built for torch 2.13 and needs FFmpeg's libraries (scripts/install_system_deps.sh --test).
+        "lerobot": [
+            "lerobot-dataset==0.4.4",
+            "opencv-python-headless<4.12",
+            "pyarrow<26",
+            "torchcodec==0.13.0",
+        ],
     },
     entry_points={
         "console_scripts": [
@@ -69,6 +79,7 @@ setup(
             "veragmil-study=veragmil_suite.scripts.study:main",
             "veragmil-quickstart=veragmil_suite.scripts.quickstart:main",
             "veragmil-bench=veragmil_suite.bench:main",
+            "veragmil-export-lerobot=veragmil_suite.scripts.export_lerobot:main",
         ]
     },
 )
