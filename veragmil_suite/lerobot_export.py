@@ -22,6 +22,7 @@ keeps metres). Floats are stored as float32, LeRobot's own dtype for states and 
 from __future__ import annotations
 
 import copy
+import importlib.util
 import json
 import os
 import shutil
@@ -187,6 +188,29 @@ def _select(f, filter_key: str | None) -> list[str]:
     return [n for n in names if n in keep]
 
 
+class ExtraNotInstalled(RuntimeError):
+    """The extra ``lerobot`` of setup.py is not installed."""
+
+
+def _lerobot_dataset_class():
+    """lerobot-dataset's LeRobotDataset, imported quietly.
+
+    Raises:
+        ExtraNotInstalled: [lerobot-dataset is not installed]
+    """
+    if importlib.util.find_spec("ledataset") is None:
+        raise ExtraNotInstalled('the lerobot-dataset package is not installed: pip install ".[lerobot]"')
+    from veragmil_suite import robomimic_compat
+
+    robomimic_compat.install()  # torchvision, which lerobot-dataset imports, beside the CPU torch wheel
+    os.environ.setdefault("SVT_LOG", SVT_LOG_ERRORS)
+    import datasets
+    from ledataset.datasets.lerobot_dataset import LeRobotDataset
+
+    datasets.disable_progress_bars()  # a bar per episode written, beside ours
+    return LeRobotDataset
+
+
 def export_lerobot(
     dataset: str | Path,
     output: str | Path,
@@ -204,6 +228,7 @@ def export_lerobot(
         DatasetError: [not a ScoopGranular dataset, no demos to export, a demo whose keys or shapes differ from
             the first's, a control rate that is no whole number of Hz, ``output`` exists and not ``force``]
         ValueError: [an unknown ``vcodec``]
+        ExtraNotInstalled: [lerobot-dataset is not installed]
     """
     if vcodec not in VIDEO_CODECS:
         raise ValueError(f"unknown video codec {vcodec!r}; accepted: {', '.join(VIDEO_CODECS)}")
@@ -211,16 +236,6 @@ def export_lerobot(
     if output.exists() and not force:
         raise DatasetError(f"{output} exists (use --force to replace it)")
     from tqdm import tqdm
-
-    from veragmil_suite import robomimic_compat
-
-    robomimic_compat.install()  # torchvision, which lerobot-dataset imports, beside the CPU torch wheel
-    os.environ.setdefault("SVT_LOG", SVT_LOG_ERRORS)
-    import av
-    import datasets
-    from ledataset.datasets.lerobot_dataset import LeRobotDataset
-
-    datasets.disable_progress_bars()  # a bar per episode written, beside ours
 
     with open_dataset(dataset) as f:
         names = _select(f, filter_key)
@@ -236,6 +251,7 @@ def export_lerobot(
         first = data[names[0]]
         layout = ExportLayout.of(first)
         features = layout.features(first)
+        LeRobotDataset = _lerobot_dataset_class()
         robots = env_kwargs.get("robots", "")
         repo_id = repo_id or f"veragmil/{Path(dataset).stem}"
         # written beside ``output`` and moved there once complete: a failed export leaves no half dataset
@@ -252,6 +268,8 @@ def export_lerobot(
             vcodec=vcodec,
         )
         # FFmpeg's own console log (lerobot-dataset hands it back after each encode) above its info lines only
+        import av
+
         av.logging.set_libav_level(av.logging.WARNING)
         foods: dict[str, int] = {}
         total = sum(int(data[n].attrs["num_samples"]) for n in names)

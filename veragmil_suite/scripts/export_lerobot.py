@@ -11,17 +11,15 @@ What goes where: veragmil_suite.lerobot_export.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import sys
 
+from veragmil_suite.lerobot_export import VIDEO_CODECS, ExtraNotInstalled, export_lerobot
 from veragmil_suite.recording import DatasetError
 
 PROG = "veragmil-export-lerobot"
 
 
 def main(argv: list[str] | None = None) -> int:
-    from veragmil_suite.lerobot_export import VIDEO_CODECS
-
     p = argparse.ArgumentParser(
         prog=PROG,
         description=__doc__.split("\n\n")[1].strip(),
@@ -35,16 +33,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--force", action="store_true", help="replace --output")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     args = p.parse_args(argv)
-    if importlib.util.find_spec("ledataset") is None:
-        print(f'{PROG}: the lerobot-dataset package is not installed: pip install ".[lerobot]"', file=sys.stderr)
-        return 2
-    from veragmil_suite.lerobot_export import export_lerobot
-
     try:
         summary = export_lerobot(
             args.dataset, args.output, args.repo_id, args.filter_key, args.vcodec, args.force, progress=not args.quiet
         )
-    except DatasetError as error:
+    except (DatasetError, ExtraNotInstalled) as error:
         print(f"{PROG}: {error}", file=sys.stderr)
         return 2
     foods = ", ".join(f"{food} {n}" for food, n in sorted(summary.foods.items()))
