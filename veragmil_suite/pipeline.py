@@ -232,12 +232,15 @@ def _run_logged(
     use_headless_rendering(environ=env)
     env.setdefault("PYNPUT_BACKEND", "dummy")
     start = time.perf_counter()
-    with open(log_path, "w") as log:
-        child = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env)
-        if progress is None:
-            code = child.wait()
-        else:
-            code = _follow(child, log_path, progress)
+    with (
+        open(log_path, "w") as log,
+        subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env) as child,
+    ):
+        try:
+            code = child.wait() if progress is None else _follow(child, log_path, progress)
+        except BaseException:  # interrupted: the child goes too, as subprocess.call would see to
+            child.kill()
+            raise
     if code != 0:
         tail = log_path.read_text(errors="replace")[-3000:]
         raise StageError(f"{what} failed (exit {code}); log {log_path}:\n{tail}")
@@ -327,10 +330,9 @@ def record_food(
     """
     Records ``demos`` successful scripted demos of ``food`` into ``path`` (attempt seeds from ``seed``, in
     ``workers`` processes, or on the Ray cluster at ``ray``; with ``progress``, a bar of the demos kept, and with
-    ``echo`` the collector's own lines); returns
-    the seconds taken, or None when the file
-    already holds them (recorded with the same settings). A file with fewer (a killed or smaller recording) is
-    continued from the seed after its last attempt: the demos are those one uninterrupted recording would have kept.
+    ``echo`` the collector's own lines); returns the seconds taken, or None when the file already holds them
+    (recorded with the same settings). A file with fewer (a killed or smaller recording) is continued from the seed
+    after its last attempt: the demos are those one uninterrupted recording would have kept.
 
     Raises:
         StageError: [the file was recorded with other settings, or recording failed]
