@@ -9,25 +9,43 @@ export MUJOCO_GL ?= osmesa
 export PYOPENGL_PLATFORM ?= osmesa
 export PYNPUT_BACKEND ?= dummy
 
-.PHONY: setup quickstart test lint bench
+SETUP_LOG := $(CURDIR)/build/setup.log
+export SETUP_LOG
+QUIETLY := bash scripts/quietly.sh $(SETUP_LOG)
+TEST_STAMP := $(VENV)/.test-installed
+
+.PHONY: setup test-setup quickstart test lint bench
 
 setup: $(STAMP)
 
+# Each step's output goes to $(SETUP_LOG), shown only when the step fails. torch 2.13.0 is the CPU wheel;
+# torchvision 0.28.0 is the release made beside it. Extras: ray (--ray of veragmil-collect, -evaluate, -study;
+# tests/test_ray.py), humanoid (robosuite-models, the Unitree G1; tests/test_g1.py), lerobot (veragmil-export-lerobot;
+# tests/test_lerobot_export.py). veragmil_suite.private_macros writes robosuite's and robomimic's private macros.
 $(STAMP): setup.py
-	bash scripts/install_system_deps.sh
-	$(PYTHON) -m venv $(VENV)
-	$(BIN)/pip install -q --upgrade pip
-	# torch 2.13.0 is the CPU wheel; torchvision 0.28.0 is the release made beside it
-	$(BIN)/pip install -q torch==2.13.0 torchvision==0.28.0
-	# extras: ray (--ray, tests/test_ray.py), humanoid (robosuite-models, the Unitree G1, tests/test_g1.py)
-	$(BIN)/pip install -q -e ".[test,ray,humanoid]"
-	if [ -f tests/browser/package.json ]; then (cd tests/browser && npm ci --no-audit --no-fund); fi
-	touch $(STAMP)
+	@echo "setting up: Debian packages, $(VENV), the package and its extras (once; log: $(SETUP_LOG))"
+	@bash scripts/install_system_deps.sh
+	@$(QUIETLY) $(PYTHON) -m venv $(VENV)
+	@$(QUIETLY) $(BIN)/pip install --upgrade pip
+	@$(QUIETLY) $(BIN)/pip install torch==2.13.0 torchvision==0.28.0
+	@$(QUIETLY) $(BIN)/pip install -e ".[test,ray,humanoid,lerobot]"
+	@$(QUIETLY) $(BIN)/python -m veragmil_suite.private_macros
+	@touch $(STAMP)
+
+# What only the tests need: FFmpeg's libraries (torchcodec reads the LeRobot export's videos), and Chromium with
+# the browser test's npm packages (tests/browser/setup.sh)
+test-setup: $(TEST_STAMP)
+
+$(TEST_STAMP): $(STAMP) tests/browser/package-lock.json
+	@echo "setting up the tests: FFmpeg's libraries, Chromium, the browser test's npm packages (log: $(SETUP_LOG))"
+	@bash scripts/install_system_deps.sh --test
+	@bash tests/browser/setup.sh
+	@touch $(TEST_STAMP)
 
 quickstart: setup
-	$(BIN)/veragmil-quickstart
+	@$(BIN)/veragmil-quickstart
 
-test: setup
+test: test-setup
 	$(BIN)/ruff check veragmil_suite tests scripts
 	$(BIN)/ruff format --check veragmil_suite tests scripts
 	$(BIN)/python -m pytest -q -n 2 -m "not realtime" tests

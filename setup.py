@@ -10,26 +10,23 @@ MUJOCO_VERSION = "3.8.1"
 # the Ray the tests ran with: one version on the driver and every node of a cluster (Ray's own requirement)
 RAY_VERSION = "2.60.0"
 
-# models/assets stays at the repository's top level and is installed as the package data of
-# veragmil_suite.assets (one package per folder), so a non-editable install finds it from any directory.
+# Folders of data installed as packages of their own (setuptools installs data only as a package's files):
+# models/assets and configs/json stay at the repository's top level and become veragmil_suite.assets (one
+# package per folder) and veragmil_suite.configs, so a non-editable install finds them from any directory; the
+# WebXR page's folder has no __init__.py and is the package veragmil_suite.devices.web.
 ASSET_DIRS = sorted(d for d, _, _ in os.walk(os.path.join("models", "assets")))
-ASSET_PACKAGES = {"veragmil_suite.assets" + d[len("models/assets") :].replace(os.sep, "."): d for d in ASSET_DIRS}
+DATA_PACKAGES = {"veragmil_suite.assets" + d[len("models/assets") :].replace(os.sep, "."): d for d in ASSET_DIRS}
+DATA_PACKAGES["veragmil_suite.configs"] = os.path.join("configs", "json")
+WEB_PACKAGE = "veragmil_suite.devices.web"
 
 setup(
     name="veragmil_suite",
     version="0.1.0",
     description="robosuite task plugin for scooping and carrying granular food with a spoon (VERAGMIL on MuJoCo)",
     python_requires=">=3.10",
-    packages=find_packages(include=["veragmil_suite", "veragmil_suite.*"])
-    + ["veragmil_suite.assets", "veragmil_suite.configs"],
-    # models/assets and configs/json stay at the repository's top level and are installed as the package data
-    # of veragmil_suite.assets and veragmil_suite.configs, so a non-editable install finds them from any directory.
-    package_dir={"veragmil_suite.assets": "models/assets", "veragmil_suite.configs": "configs/json"},
-    package_data={
-        "veragmil_suite.assets": ["**/*"],
-        "veragmil_suite.configs": ["*.json"],
-        "veragmil_suite": ["devices/web/**/*"],
-    },
+    packages=[*find_packages(include=["veragmil_suite", "veragmil_suite.*"]), *DATA_PACKAGES, WEB_PACKAGE],
+    package_dir=DATA_PACKAGES,
+    package_data={package: ["*"] for package in [*DATA_PACKAGES, WEB_PACKAGE]},
     include_package_data=True,
     install_requires=[
         "robosuite==1.5.2",
@@ -54,6 +51,16 @@ setup(
         "ray": [f"ray=={RAY_VERSION}"],
         # the Unitree G1 (robots="G1FixedLowerBody" or "G1ArmsOnly"); robosuite imports it when it is installed
         "humanoid": ["robosuite-models==1.0.0"],
+        # lerobot: veragmil-export-lerobot writes LeRobotDatasets with the standalone LeRobotDataset package (no
+        # torch pin, unlike lerobot itself). Beside numpy<2: opencv-python-headless 4.12 and pyarrow 26 need NumPy 2
+        # (pyarrow's metadata does not say so). torchcodec decodes the videos (torchvision 0.28 no longer can); 0.13
+        # is the release built for torch 2.13 and needs FFmpeg's libraries (scripts/install_system_deps.sh --test).
+        "lerobot": [
+            "lerobot-dataset==0.4.4",
+            "opencv-python-headless<4.12",
+            "pyarrow<26",
+            "torchcodec==0.13.0",
+        ],
     },
     entry_points={
         "console_scripts": [
@@ -72,6 +79,7 @@ setup(
             "veragmil-study=veragmil_suite.scripts.study:main",
             "veragmil-quickstart=veragmil_suite.scripts.quickstart:main",
             "veragmil-bench=veragmil_suite.bench:main",
+            "veragmil-export-lerobot=veragmil_suite.scripts.export_lerobot:main",
         ]
     },
 )

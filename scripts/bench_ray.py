@@ -84,10 +84,10 @@ def main(argv: list[str] | None = None) -> int:
         config = training_config("bc", work / "data0.hdf5", work / "runs", name, epochs=1, steps_per_epoch=args.steps)
         if where:
             held = training_resources()
-            context = (work / "runs", int(held.cpus))
+            context = (work / "runs", int(held.cpus), False, False)
             list(run_pieces(_train_piece, [config], context=context, on_ray=True, resources=held))
         else:
-            _train_piece((work / "runs", None), config)
+            _train_piece((work / "runs", None, False, False), config)
 
     def row(name: str, local, on_ray) -> None:
         """The fastest of --repeats alternating measurements of each side."""

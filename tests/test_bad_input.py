@@ -55,6 +55,10 @@ CASES = [
     ("veragmil-study", ["--output-dir", "{tmp}/s", "--algo-epochs", "bcq=0"], "EPOCHS must be a positive integer"),
     ("veragmil-quickstart", ["--episodes", "0"], "argument --episodes: must be a positive"),
     ("veragmil-study", ["--output-dir", "{tmp}/s", "--agent", "old=nowhere.pth"], "checkpoint 'nowhere.pth' not found"),
+    ("veragmil-export-lerobot", ["{missing}", "--output", "{tmp}/l"], "no such file"),
+    ("veragmil-export-lerobot", [SAMPLE, "--output", "{tmp}/l", "--filter-key", "caviar"],
+     "no filter key 'caviar' in "),
+    ("veragmil-export-lerobot", [SAMPLE, "--output", "{tmp}/l", "--vcodec", "mpeg2"], "invalid choice: 'mpeg2'"),
     ("veragmil-bench", ["--foods", "caviar"], "caviar"),
     ("veragmil-bench", ["--sleep-tolerance", "0"], "--sleep-tolerance: sleep_tolerance must be a positive number"),
 ]  # fmt: skip

@@ -3,6 +3,7 @@
 import csv
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -11,6 +12,7 @@ from pathlib import Path
 
 import h5py
 import pytest
+from helpers.output import warning_lines
 
 from veragmil_suite.asset_paths import config_path
 from veragmil_suite.pipeline import PipelineSettings, StageError, record_food, training_config
@@ -157,6 +159,10 @@ def test_an_algorithm_with_its_own_budget_is_evaluated_at_its_end_and_at_the_swe
         PipelineSettings(**grid, algo_epochs={"bc_rnn": 40}, eval_steps=[60000])
 
 
+# what veragmil-quickstart prints on stdout: a line per stage, the tables, where they went
+QUICKSTART_LINES = re.compile(r"\[veragmil\] .*|Table (II|III): .*|Furthest stage .*|\|.*\||Tables, chart and .*|")
+
+
 def test_quickstart_end_to_end_records_trains_evaluates_and_prints_the_tables(tmp_path):
     """The README's main job, shrunk: one cheap food, one demo, a few gradient steps, one episode per agent."""
     out = tmp_path / "qs"
@@ -177,6 +183,12 @@ def test_quickstart_end_to_end_records_trains_evaluates_and_prints_the_tables(tm
     assert "expert BC" in result.stdout and "peas" in result.stdout and "pasta" in result.stdout
     stages = (out / "eval" / "stages.md").read_text()
     assert "| expert operator | pasta | 1 | 0 | 0 | 0 | 0 | 0 | 1 |" in stages  # the expert held its scoop
+    # its stages, a progress bar for each, the tables, and nothing else
+    assert not warning_lines((result.stdout + result.stderr).splitlines())
+    bars = result.stderr.replace("\r", "\n")
+    for bar in ("expert pasta: 100%", "expert_bc_1demos_10steps: 100%", "episodes: 100%"):
+        assert bar in bars, bars[-2000:]
+    assert not [line for line in result.stdout.splitlines() if not QUICKSTART_LINES.fullmatch(line)], result.stdout
 
 
 CHEAP_STUDY = ["--profiles", "expert", "--algos", "bc", "--train-foods", "pasta", "--eval-foods", "pasta", "peas"]

@@ -8,8 +8,12 @@ when it is defined), the SpoonGripper (gripper_types="SpoonGripper") and the Gym
 import os
 
 from veragmil_suite.rendering import use_headless_rendering
+from veragmil_suite.upstream_logging import drop_missing_examples_warning
 
 __version__ = "0.1.0"
+
+# robosuite's warning that its wheel lacks its examples package, logged at its import (veragmil_suite.upstream_logging)
+drop_missing_examples_warning()
 
 # Without a display, OSMesa by default (why: veragmil_suite.rendering). Only a default: it must precede robosuite's
 # import, so import veragmil_suite first (or set MUJOCO_GL yourself).

@@ -248,7 +248,7 @@ def _policy(path: str):
 
         from veragmil_suite import robomimic_compat
 
-        # robomimic's "no private macro file" warning at import and its banner of observation keys, per worker
+        # robomimic's banner of observation keys, printed by every worker that loads a policy
         with contextlib.redirect_stdout(io.StringIO()):
             robomimic_compat.install()
             import robomimic.utils.file_utils as FileUtils
@@ -371,11 +371,10 @@ def _env_metadata(path: str) -> dict:
     """A checkpoint's env metadata, read without building its policy."""
     from veragmil_suite import robomimic_compat
 
-    with contextlib.redirect_stdout(io.StringIO()):  # robomimic's "no private macro file" warning at import
-        robomimic_compat.install()
-        import robomimic.utils.file_utils as FileUtils
+    robomimic_compat.install()
+    import robomimic.utils.file_utils as FileUtils
 
-        return FileUtils.load_dict_from_checkpoint(path)["env_metadata"]
+    return FileUtils.load_dict_from_checkpoint(path)["env_metadata"]
 
 
 def dataset_episodes(name: str, path: str, foods: list[str]) -> list[EpisodeRecord]:

@@ -28,6 +28,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -200,19 +201,72 @@ class PipelineSettings:
         return names
 
 
-def _run_logged(command: list[str], log_path: Path, what: str, environ: dict[str, str] | None = None) -> float:
-    """Runs a command (with ``environ`` added to this environment) with its output in ``log_path``; returns its wall
-    time, raises StageError on failure."""
+@dataclass(frozen=True)
+class LogProgress:
+    """A progress bar a child's log drives: ``pattern``'s first group, in the last line that matches, is the count
+    done out of ``total``; with ``echo``, the log's lines are shown above the bar as they come."""
+
+    total: int
+    pattern: str
+    desc: str
+    unit: str
+    echo: bool = False
+
+
+# veragmil-collect's line per episode kept ("  saved as demo_3 (2/5)"); robomimic's train.py's line per epoch
+RECORDING_PROGRESS = r"saved as demo_\d+ \((\d+)/\d+\)"
+TRAINING_PROGRESS = r"^Train Epoch (\d+)$"
+LOG_POLL_S = 0.5
+
+
+def _run_logged(
+    command: list[str],
+    log_path: Path,
+    what: str,
+    environ: dict[str, str] | None = None,
+    progress: LogProgress | None = None,
+) -> float:
+    """Runs a command (with ``environ`` added to this environment) with its output in ``log_path``, advancing a
+    progress bar from the log when ``progress`` is given; returns its wall time, raises StageError on failure."""
     env = dict(os.environ, **(environ or {}))
     use_headless_rendering(environ=env)
     env.setdefault("PYNPUT_BACKEND", "dummy")
     start = time.perf_counter()
-    with open(log_path, "w") as log:
-        code = subprocess.call(command, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env)
+    with (
+        open(log_path, "w") as log,
+        subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env) as child,
+    ):
+        try:
+            code = child.wait() if progress is None else _follow(child, log_path, progress)
+        except BaseException:  # interrupted: the child goes too, as subprocess.call would see to
+            child.kill()
+            raise
     if code != 0:
         tail = log_path.read_text(errors="replace")[-3000:]
         raise StageError(f"{what} failed (exit {code}); log {log_path}:\n{tail}")
     return time.perf_counter() - start
+
+
+def _follow(child: subprocess.Popen, log_path: Path, progress: LogProgress) -> int:
+    """Waits for ``child``, its progress read from the lines it writes to ``log_path``; returns its exit code."""
+    from tqdm import tqdm
+
+    pattern = re.compile(progress.pattern, re.MULTILINE)
+    bar = tqdm(total=progress.total, desc=progress.desc, unit=progress.unit)
+    with open(log_path, errors="replace") as log, bar:
+        pending = ""
+        while True:
+            code = child.poll()
+            pending += log.read()
+            complete, _, pending = pending.rpartition("\n")
+            found = pattern.findall(complete)
+            if progress.echo and complete:
+                bar.write(complete)
+            if found:
+                bar.update(min(int(found[-1]), progress.total) - bar.n)
+            if code is not None:
+                return code
+            time.sleep(LOG_POLL_S)
 
 
 def _console(name: str) -> list[str]:
@@ -270,12 +324,15 @@ def record_food(
     workers: int = 1,
     ray: str | None = None,
     robot: str = "XArm7",
+    progress: bool = False,
+    echo: bool = False,
 ) -> float | None:
     """
     Records ``demos`` successful scripted demos of ``food`` into ``path`` (attempt seeds from ``seed``, in
-    ``workers`` processes, or on the Ray cluster at ``ray``); returns the seconds taken, or None when the file
-    already holds them (recorded with the same settings). A file with fewer (a killed or smaller recording) is
-    continued from the seed after its last attempt: the demos are those one uninterrupted recording would have kept.
+    ``workers`` processes, or on the Ray cluster at ``ray``; with ``progress``, a bar of the demos kept, and with
+    ``echo`` the collector's own lines); returns the seconds taken, or None when the file already holds them
+    (recorded with the same settings). A file with fewer (a killed or smaller recording) is continued from the seed
+    after its last attempt: the demos are those one uninterrupted recording would have kept.
 
     Raises:
         StageError: [the file was recorded with other settings, or recording failed]
@@ -314,7 +371,8 @@ def record_food(
     if ray is not None:
         command += ["--ray", ray]
     log = path.with_name(f"{path.stem}.seed{seed}.log")
-    return _run_logged(command, log, f"recording {food} ({profile})")
+    bar = LogProgress(demos, RECORDING_PROGRESS, f"{profile} {food}", "demo", echo) if progress else None
+    return _run_logged(command, log, f"recording {food} ({profile})", progress=bar)
 
 
 def demo_mask(n: int) -> str:
@@ -370,9 +428,12 @@ def record_scripted_dataset(
     say=print,
     ray: str | None = None,
     robot: str = "XArm7",
+    progress: bool = False,
+    echo: bool = False,
 ) -> float:
     """Records (or finds complete) max(``demo_counts``) scripted demos of each food, one file per food beside
-    ``path``, and merges them into ``path`` with a mask per demo count; returns the seconds spent recording."""
+    ``path`` (with ``progress``, a bar per food; with ``echo``, the collectors' lines), and merges them into
+    ``path`` with a mask per demo count; returns the seconds spent recording."""
     path = Path(path)
     folder = path.with_suffix("")
     elapsed = 0.0
@@ -391,6 +452,8 @@ def record_scripted_dataset(
             workers=workers,
             ray=ray,
             robot=robot,
+            progress=progress,
+            echo=echo,
         )
         if seconds is None:
             say(f"skipping recording {profile} {food}: {file} holds its {max(demo_counts)} demos")
@@ -475,12 +538,18 @@ def finished_training(config: dict, work_dir: Path) -> dict[int, Path] | None:
 
 
 def train_checkpoint(
-    config: dict, work_dir: Path, say=print, torch_threads: int | None = None
+    config: dict,
+    work_dir: Path,
+    say=print,
+    torch_threads: int | None = None,
+    progress: bool = False,
+    echo: bool = False,
 ) -> tuple[dict[int, Path], float | None]:
     """
     Trains with veragmil-train (with ``torch_threads`` torch threads when given, else $VERAGMIL_TORCH_THREADS or
-    robomimic's 2) unless a finished run of the same config holding every checkpoint asked for is there; returns
-    the checkpoints by epoch and the wall time (None when skipped).
+    robomimic's 2; with ``progress``, a bar of its epochs, and with ``echo`` robomimic's output) unless a finished
+    run of the same config holding every checkpoint asked for is there; returns the checkpoints by epoch and the
+    wall time (None when skipped).
 
     Raises:
         StageError: [training failed or wrote no last checkpoint, or the run's folder holds another config]
@@ -506,17 +575,19 @@ def train_checkpoint(
     if torch_threads is not None:
         environ = {"VERAGMIL_TORCH_THREADS": str(torch_threads), "OMP_NUM_THREADS": str(torch_threads)}
     command = [*_console("veragmil-train"), "--config", str(config_file)]
-    seconds = _run_logged(command, work_dir / f"{name}.log", f"training {name}", environ=environ)
+    bar = LogProgress(epochs, TRAINING_PROGRESS, name, "epoch", echo) if progress else None
+    seconds = _run_logged(command, work_dir / f"{name}.log", f"training {name}", environ=environ, progress=bar)
     found = _checkpoints(config)
     if not wanted <= set(found):
         raise StageError(f"training {name} wrote no last checkpoint under {config['train']['output_dir']}/{name}")
     return found, seconds
 
 
-def _train_piece(context: tuple[Path, int | None], config: dict) -> tuple[dict[int, Path], float | None]:
-    """A training run as a piece (veragmil_suite.distributed): ``context`` is (work_dir, torch threads)."""
-    work_dir, threads = context
-    return train_checkpoint(config, work_dir, say=lambda _: None, torch_threads=threads)
+def _train_piece(context: tuple[Path, int | None, bool, bool], config: dict) -> tuple[dict[int, Path], float | None]:
+    """A training run as a piece (veragmil_suite.distributed): ``context`` is (work_dir, torch threads, whether to
+    show a progress bar, whether to show robomimic's output)."""
+    work_dir, threads, progress, echo = context
+    return train_checkpoint(config, work_dir, say=lambda _: None, torch_threads=threads, progress=progress, echo=echo)
 
 
 def training_resources() -> Resources:
@@ -537,9 +608,10 @@ def _steps_label(steps: int) -> str:
     return f"{steps // 1000}k" if steps % 1000 == 0 else str(steps)
 
 
-def run_pipeline(settings: PipelineSettings, progress: bool = True):
+def run_pipeline(settings: PipelineSettings, progress: bool = True, verbose: bool = False):
     """Records one dataset per profile, trains every algorithm on each, evaluates them and the scripted operators,
     skipping every piece a previous run in the same output directory completed; with ``settings.ray``, on Ray.
+    ``progress``: a line per stage and progress bars; ``verbose``: also what the recorders and trainings print.
 
     Returns the evaluation result (veragmil_suite.evaluation.EvaluationResult); everything is written under
     ``settings.output_dir``: data/, runs/, eval/ and timings.json.
@@ -585,6 +657,8 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True):
                 say=say,
                 ray=address,
                 robot=settings.robot,
+                progress=progress,
+                echo=verbose,
             )
             note(f"record {profile}", seconds or None)
             for algo in settings.algos:
@@ -604,7 +678,7 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True):
                         runs.append(
                             dict(profile=profile, algo=algo, demos_per_food=n, train_seed=train_seed, config=config)
                         )
-        checkpoints = _train_runs(runs, settings, out / "runs", address, say, note)
+        checkpoints = _train_runs(runs, settings, out / "runs", address, say, note, progress, verbose)
 
         agents: dict[str, str] = {}
         points: list[dict] = []
@@ -671,9 +745,19 @@ def _remove_derived(eval_dir: Path, names: tuple[str, ...], say) -> None:
         say(f"removed {path}: an earlier run's table that this run does not make")
 
 
-def _train_runs(runs: list[dict], settings: PipelineSettings, work_dir: Path, address: str | None, say, note):
-    """Every training run of ``runs`` that is not finished, one after another here or all at once on Ray (at
-    ``address``); returns each run's checkpoints by epoch, by run name."""
+def _train_runs(
+    runs: list[dict],
+    settings: PipelineSettings,
+    work_dir: Path,
+    address: str | None,
+    say,
+    note,
+    progress: bool,
+    echo: bool,
+):
+    """Every training run of ``runs`` that is not finished, one after another here (with ``progress``, a bar of
+    each one's epochs; with ``echo``, robomimic's output) or all at once on Ray (at ``address``); returns each
+    run's checkpoints by epoch, by run name."""
     checkpoints: dict[str, dict[int, Path]] = {}
     todo = []
     for run in runs:
@@ -698,7 +782,7 @@ def _train_runs(runs: list[dict], settings: PipelineSettings, work_dir: Path, ad
     on_ray = address is not None
     resources = training_resources() if on_ray else Resources()
     # on Ray a run takes as many torch threads as it holds CPUs; here, those of $VERAGMIL_TORCH_THREADS or robomimic
-    context = (work_dir, int(resources.cpus) if on_ray else None)
+    context = (work_dir, int(resources.cpus) if on_ray else None, progress and not on_ray, echo and not on_ray)
     pieces = run_pieces(_train_piece, announced(todo), context=context, processes=0, on_ray=on_ray, resources=resources)
     with contextlib.closing(pieces):
         for config, (found, seconds) in pieces:

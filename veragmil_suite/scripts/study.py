@@ -104,6 +104,12 @@ def add_pipeline_arguments(p: argparse.ArgumentParser, defaults: PipelineSetting
         help="do not score the scripted operators themselves (the Human column), e.g. when measure_expert has",
     )
     p.add_argument(
+        "--verbose",
+        "-v",
+        action="store_true",
+        help="also show what each recording and training prints (logged beside its results either way)",
+    )
+    p.add_argument(
         "--agent",
         action="append",
         metavar="[NAME=]SPEC",
@@ -175,7 +181,7 @@ def run(parser: argparse.ArgumentParser, argv: list[str] | None) -> int:
     except ValueError as error:
         parser.error(str(error))
     try:
-        result = run_pipeline(settings)
+        result = run_pipeline(settings, verbose=args.verbose)
     except StageError as error:
         print(f"{parser.prog}: {error}", file=sys.stderr)
         return 1
