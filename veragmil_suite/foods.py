@@ -53,7 +53,7 @@ SHAPES = ("capsule", "sphere", "ellipsoid", "box", "sphere_pair", "sphere_chain"
 # The physics a scene is built with: grain models of the food catalog (and the solver settings that go with them,
 # veragmil_suite.models.scoop_task.PHYSICS_SOLVER_OPTIONS). "table1" reproduces every result made before calibration.
 PHYSICS: tuple[str, ...] = ("calibrated", "table1")
-DEFAULT_PHYSICS = "calibrated"
+DEFAULT_PHYSICS = "table1"
 PRE_CALIBRATION_PHYSICS = "table1"  # what datasets, checkpoints and results that name no physics were made with
 
 
@@ -350,9 +350,9 @@ _REFERENCE = {
 _CALIBRATED: dict[str, GrainModel] = {
     # name: GrainModel(shape, size range m, aspect, density kg/m^3, friction, restitution, rolling m, torsional m,
     #                  margin m, default grains)
-    "rice": GrainModel("sphere_chain", (0.005, 0.007), (0.40, 3), 1030.0, 0.50, 0.10, 5e-4, 1e-3, 1e-4, 200),
+    "rice": GrainModel("sphere_pair", (0.005, 0.007), (0.45,), 1065.0, 0.50, 0.10, 5e-4, 1e-3, 1e-4, 200),
     "buckwheat": GrainModel("spheres_triangle", (0.004, 0.006), (), 640.0, 0.50, 0.10, 5e-4, 1e-3, 1e-4, 150),
-    "barley": GrainModel("sphere_chain", (0.008, 0.012), (0.34, 3), 712.0, 0.50, 0.15, 5e-4, 1e-3, 1e-4, 120),
+    "barley": GrainModel("sphere_pair", (0.008, 0.012), (0.40,), 655.0, 0.50, 0.15, 5e-4, 1e-3, 1e-4, 120),
     "pasta": GrainModel("capsule", (0.020, 0.035), (0.28,), 650.0, 0.45, 0.10, 5e-4, 1e-3, 1e-4, 40),
     "peas": GrainModel("sphere", (0.006, 0.008), (), 1120.0, 0.40, 0.20, 2e-4, 5e-4, 1e-4, 150),
     "beans": GrainModel("ellipsoid", (0.010, 0.018), (0.65, 0.5), 1265.0, 0.50, 0.20, 5e-4, 1e-3, 1e-4, 60),
