@@ -13,7 +13,7 @@ from robosuite.utils.observables import Observable, sensor
 
 from veragmil_suite.controllers import leave_heading_free, load_scoop_controller_config
 from veragmil_suite.fast_control import use_block_mass_matrix
-from veragmil_suite.foods import FoodSpec, get_food
+from veragmil_suite.foods import FOODS, FoodSpec, get_food
 from veragmil_suite.humanoid import SPOON_ARM, HumanoidLayout, check_robot, humanoid_layout, self_contact_excludes
 from veragmil_suite.kinematics import solve_pose_ik
 from veragmil_suite.models.arena import ScoopArena
@@ -30,10 +30,13 @@ from veragmil_suite.models.scoop_task import (
 )
 from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
 from veragmil_suite.settling import SettledPile, pile_key, settle
+from veragmil_suite.sim_xml import keep_sim_xml
 
 M3_PER_CM3 = 1e-6
 # the largest grain count accepted, as a multiple of the food's default (veragmil_suite.bench times 1x, 2x and 4x)
 MAX_GRAINS_PER_DEFAULT = 4
+# pile variants tried when a loaded model's pile is identified (beyond the environment's own pile_variants)
+LOADED_PILE_VARIANTS_TRIED = 64
 
 # Spoon orientations in the world, as rotation matrices of the flange (eef) frame. Pre-scoop: the tool points
 # straight down, so the bent spoon's tip points down at 45 degrees along +x (away from the robot), its bowl
@@ -95,6 +98,9 @@ class ScoopGranular(ManipulationEnv):
         physics_timestep_s (float): the physics step (s), a whole number of them per control period (default
             veragmil_suite.models.scoop_task.PHYSICS_TIMESTEP_S, 1/240 s). A recorded XML loaded later
             (reset_from_xml_string) runs at the step it was recorded with.
+        A model loaded with reset_from_xml_string (any ScoopGranular XML a tool saved, MuJoCo's rounded numbers
+        included) brings its own food, grain count, pile and physics step: the environment adopts them until its
+        next fresh model, which is of the food and grain count given here again.
         (robosuite's usual arguments: has_renderer, has_offscreen_renderer, render_camera, render_collision_mesh,
         render_visual_mesh, render_gpu_device_id, control_freq, lite_physics, horizon, ignore_done, hard_reset,
         camera_names, camera_heights, camera_widths, camera_depths, camera_segmentations, renderer,
@@ -166,6 +172,8 @@ class ScoopGranular(ManipulationEnv):
         if n_grains is not None and (not isinstance(n_grains, (int, np.integer)) or n_grains <= 0):
             raise ValueError(f"n_grains must be a positive integer or None (the food's default), got {n_grains!r}")
         self.n_grains = int(n_grains) if n_grains is not None else self.food.default_grains
+        # food and n_grains are the simulation's (a loaded model's may differ); these are what fresh models get
+        self._env_food, self._env_n_grains = self.food, self.n_grains
         limit = MAX_GRAINS_PER_DEFAULT * self.food.default_grains
         if self.n_grains > limit:
             raise ValueError(
@@ -344,6 +352,7 @@ class ScoopGranular(ManipulationEnv):
         self.bowl = Bowl(name="bowl", shape=self.bowl_shape)
         # One of a few piles per food: each is settled once per machine (veragmil_suite.settling), and the same
         # seed always draws the same one, so the same seed gives the same XML.
+        self.food, self.n_grains = self._env_food, self._env_n_grains
         self.pile_variant = int(self.rng.integers(self.pile_variants))
         self.grain_pile = self._pile(self.pile_variant)
 
@@ -367,11 +376,11 @@ class ScoopGranular(ManipulationEnv):
         """MuJoCo <option> attributes of the scene and of settling: the defaults, updated by physics_solver_options."""
         return {**PILE_SOLVER_OPTIONS, **(self.physics_solver_options or {})}
 
-    def _pile(self, variant: int) -> GrainPile:
-        """Pile variant ``variant`` of this food and grain count (the same on every machine)."""
-        return GrainPile(
-            self.food, self.n_grains, np.random.default_rng([variant, self.n_grains, *map(ord, self.food.name)])
-        )
+    def _pile(self, variant: int, food: FoodSpec | None = None, n_grains: int | None = None) -> GrainPile:
+        """Pile variant ``variant`` of this (or ``food``'s) food and grain count (the same on every machine)."""
+        food = self.food if food is None else food
+        n_grains = self.n_grains if n_grains is None else n_grains
+        return GrainPile(food, n_grains, np.random.default_rng([variant, n_grains, *map(ord, food.name)]))
 
     def settled_piles(self) -> dict[str, SettledPile]:
         """
@@ -382,48 +391,53 @@ class ScoopGranular(ManipulationEnv):
         timestep = float(self.sim.model.opt.timestep)
         piles = {}
         for variant in range(self.pile_variants):
-            pile = self._pile(variant)
+            pile = self._pile(variant, self._env_food, self._env_n_grains)
             piles[pile_key(self.bowl, pile, self.solver_options, timestep)] = settle(
                 self.bowl, pile, self.solver_options, timestep
             )
         return piles
 
-    def _check_loaded_grain_count(self) -> None:
-        """A recorded XML of another food or grain count (a merged multi-food dataset) fails here, clearly."""
-        pattern = re.compile(rf"{re.escape(self.grain_pile.name)}\d+")
-        loaded = sum(1 for name in self.sim.model.body_names if pattern.fullmatch(name))
-        if loaded != self.n_grains:
-            raise ValueError(
-                f"the loaded model holds {loaded} grains, this environment {self.n_grains} of {self.food.name!r}: "
-                "make the environment with the env_kwargs the model was recorded with (each demo stores its own in "
-                "its 'env_args' attribute)"
-            )
-
-    def _match_loaded_pile(self) -> None:
+    def _adopt_loaded_pile(self) -> None:
         """
-        Points grain_pile at the variant the simulation was built from.
+        Makes food, n_grains, pile_variant and grain_pile those of the pile the simulation was built from.
 
-        reset_from_xml_string (robomimic's reset_to, playback) may load a recorded XML of another variant than the
-        one drawn last, and the grain volumes and sizes the metrics use must be that XML's.
+        reset_from_xml_string (robosuite's playback, robomimic's reset_to, a merged dataset of several foods) may
+        load a recorded XML of another food, grain count or pile variant than the one drawn last: the metrics and
+        observations must use that pile's grain sizes and volumes. The pile is found among the environment's own
+        food's and the catalog's (veragmil_suite.foods.FOODS) piles of the grain colour and count loaded.
         """
         model = self.sim.model
-        loaded = model.geom_size[model.body_geomadr[self.grain_body_ids]]
+        pattern = re.compile(rf"{re.escape(self.grain_pile.name)}(\d+)")
+        n_loaded = sum(1 for name in model.body_names if pattern.fullmatch(name))
+        body_ids = [model.body_name2id(f"{self.grain_pile.name}{i}") for i in range(n_loaded)]
+        first_geoms = model.body_geomadr[body_ids]
+        loaded = model.geom_size[first_geoms]
+        rgba = model.geom_rgba[first_geoms[0]] if n_loaded else None
 
         # saved XML keeps 6 significant digits; variants' sizes are drawn from a continuous range
-        def first_geom_sizes(pile: GrainPile) -> np.ndarray:
-            return np.array([np.pad(g[0]["size"], (0, 3 - len(g[0]["size"]))) for g in pile.geoms])
+        def holds(pile: GrainPile) -> bool:
+            sizes = np.array([np.pad(g[0]["size"], (0, 3 - len(g[0]["size"]))) for g in pile.geoms])
+            return np.allclose(sizes, loaded, rtol=1e-5, atol=0)
 
-        if np.allclose(first_geom_sizes(self.grain_pile), loaded, rtol=1e-5, atol=0):
+        if n_loaded == self.grain_pile.n_grains and holds(self.grain_pile):
             return
-        for variant in range(self.pile_variants):
-            pile = self._pile(variant)
-            if np.allclose(first_geom_sizes(pile), loaded, rtol=1e-5, atol=0):
-                self.pile_variant, self.grain_pile = variant, pile
-                return
+        foods = []
+        for food in (self._env_food, self.food, *FOODS.values()):
+            if all(food.name != f.name for f in foods):
+                foods.append(food)
+        tried = max(self.pile_variants, LOADED_PILE_VARIANTS_TRIED)
+        for food in foods:
+            if n_loaded == 0 or not np.allclose(food.rgba, rgba, atol=1e-5):
+                continue
+            for variant in range(tried):
+                pile = self._pile(variant, food, n_loaded)
+                if holds(pile):
+                    self.food, self.n_grains, self.pile_variant, self.grain_pile = food, n_loaded, variant, pile
+                    return
         raise ValueError(
-            f"the loaded model's grains match none of the {self.pile_variants} pile variants of "
-            f"{self.food.name!r} with {self.n_grains} grains: make the environment with the food, n_grains and "
-            "pile_variants the model was recorded with"
+            f"the loaded model's {n_loaded} grains are none of the first {tried} piles of {n_loaded} grains of any "
+            f"known food ({', '.join(f.name for f in foods)}): register its food (veragmil_suite.foods.register_food) "
+            "or make the environment with it"
         )
 
     def _setup_references(self):
@@ -437,11 +451,10 @@ class ScoopGranular(ManipulationEnv):
         self.bowl_body_id = model.body_name2id(self.bowl.root_body)
         self.bowl_qpos_adr = model.get_joint_qpos_addr(self.bowl.joints[0])[0]
         self.bowl_qvel_adr = model.get_joint_qvel_addr(self.bowl.joints[0])[0]
-        self._check_loaded_grain_count()
+        self._adopt_loaded_pile()
         self.grain_body_ids = np.array([model.body_name2id(n) for n in self.grain_pile.body_names])
         self.grain_qpos_adr = np.array([model.get_joint_qpos_addr(n)[0] for n in self.grain_pile.joint_names])
         self.grain_qvel_adr = np.array([model.get_joint_qvel_addr(n)[0] for n in self.grain_pile.joint_names])
-        self._match_loaded_pile()
         gripper = self.robots[0].gripper[SPOON_ARM]
         self.spoon_site_id = model.site_name2id(gripper.important_sites["spoon_frame"])
         self.spoon_geom_ids = np.array([model.geom_name2id(n) for n in gripper.important_geoms["spoon"]])
@@ -840,8 +853,15 @@ class ScoopGranular(ManipulationEnv):
     def _initialize_sim(self, xml_string=None):
         super()._initialize_sim(xml_string)
         self._badqacc_seen = 0
-        # a recorded XML runs at the step it was recorded with (datasets keep their own physics)
+        # a recorded XML runs at the step it was recorded with (datasets keep their own physics), exactly: a saved
+        # XML's rounded step is the whole fraction of the control period it was (check_physics_timestep)
         self.model_timestep = check_physics_timestep(float(self.sim.model.opt.timestep), self.control_freq)
+        self.sim.model.opt.timestep = self.model_timestep
+        # robosuite's own processing of the XML it compiled (MujocoEnv._initialize_sim), kept with the simulation
+        xml = xml_string if xml_string else self.model.get_xml()
+        for processor in self._xml_processors:
+            xml = processor(xml)
+        keep_sim_xml(self.sim, xml)
 
     def reset(self, seed: int | None = None):
         """
