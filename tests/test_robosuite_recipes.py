@@ -1,19 +1,29 @@
 """robosuite's own recipes on ScoopGranular, unchanged: DataCollectionWrapper recording, the replay of
 robosuite's playback_demonstrations_from_hdf5.py (model XML, flattened state, actions open loop), seeded
-determinism and camera observations, for every food and every robot that carries the spoon; and any saved model
-loads back, adopted whatever the environment was made with."""
+determinism and camera observations, for every food and every robot that carries the spoon; any saved model
+loads back, adopted whatever the environment was made with; robosuite.make with the README's defaults, and one
+plain warning for a controller the task was not tuned for."""
 
 import glob
+import json
 import os
+import re
+import warnings
 
 import mujoco
 import numpy as np
 import pytest
 import robosuite
 from helpers.env import make_env
+from robosuite.controllers import load_composite_controller_config
 from robosuite.wrappers import DataCollectionWrapper
 
 from veragmil_suite import humanoid, settling
+from veragmil_suite.controllers import (
+    UntunedControllerWarning,
+    load_scoop_controller_config,
+    untuned_controller_difference,
+)
 from veragmil_suite.foods import FOODS
 from veragmil_suite.models.scoop_task import PHYSICS_TIMESTEP_S, check_physics_timestep
 
@@ -150,3 +160,27 @@ def test_a_step_saved_to_six_digits_is_the_step_it_was():
                          use_camera_obs=False, physics_timestep_s=0.00416667)  # fmt: skip
     assert env.sim.model.opt.timestep == env.model_timestep == PHYSICS_TIMESTEP_S
     env.close()
+
+
+def test_robosuite_make_with_the_readmes_defaults():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UntunedControllerWarning)
+        env = robosuite.make("ScoopGranular")
+    assert (env.robots[0].name, env.food.name, env.action_dim) == ("XArm7", "rice", 6)
+    env.close()
+
+
+def test_an_untuned_controller_is_said_once_at_make_time():
+    """robosuite's usual config gives the arm robosuite's stiffness and action scale, not the task's."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        env = make_env("pasta", controller_configs=load_composite_controller_config(controller="BASIC", robot="XArm7"))
+    said = [w for w in caught if issubclass(w.category, UntunedControllerWarning)]
+    assert len(said) == 1
+    assert re.search(r"kp 150 \(tuned: 2000\); right arm output_max \[0.05, .*\(tuned: \[0.01851", str(said[0].message))
+    env.close()
+    # the task's own configs, as datasets store them (JSON), are the tuned ones
+    for name in ("OSC_POSE", "IK_POSE"):
+        stored = json.loads(json.dumps(load_scoop_controller_config(name, robot="Panda")))
+        assert untuned_controller_difference(stored, "Panda") == ""
+    assert untuned_controller_difference(load_scoop_controller_config(robot="G1ArmsOnly"), "G1ArmsOnly") == ""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+import warnings
 
 import mujoco
 import numpy as np
@@ -11,7 +12,12 @@ from robosuite.environments.manipulation.manipulation_env import ManipulationEnv
 from robosuite.utils.mjcf_utils import array_to_string, find_elements, new_element
 from robosuite.utils.observables import Observable, sensor
 
-from veragmil_suite.controllers import leave_heading_free, load_scoop_controller_config
+from veragmil_suite.controllers import (
+    UntunedControllerWarning,
+    leave_heading_free,
+    load_scoop_controller_config,
+    untuned_controller_difference,
+)
 from veragmil_suite.fast_control import use_block_mass_matrix
 from veragmil_suite.foods import FOODS, FoodSpec, get_food
 from veragmil_suite.humanoid import SPOON_ARM, HumanoidLayout, check_robot, humanoid_layout, self_contact_excludes
@@ -59,10 +65,12 @@ class ScoopGranular(ManipulationEnv):
         robots (str or list of str): Specification for specific robot arm to be instantiated within this env
             (e.g: "XArm7"). Note: Must be a single single-arm robot, or the Unitree G1 ("G1FixedLowerBody",
             "G1ArmsOnly", with robosuite-models), which the task places at the table (veragmil_suite.humanoid): it
-            scoops with its right hand, and its left arm and torso hold still.
+            scoops with its right hand, and its left arm and torso hold still. Default: XArm7.
         env_configuration (str): Specifies how to position the robots within the environment (default is "default").
         controller_configs (str or dict): composite controller config. None gives OSC_POSE (see
-            veragmil_suite.controllers.load_scoop_controller_config, which also offers robosuite's IK_POSE).
+            veragmil_suite.controllers.load_scoop_controller_config, which also offers robosuite's IK_POSE); any
+            other config (robosuite's own defaults among them) is warned about once, naming what differs
+            (UntunedControllerWarning).
         gripper_types (str): end-effector; default "SpoonGripper" (a two-armed robot holds it in its right hand and
             nothing in its left)
         base_types (str): robot base type; "default" uses the robot's own
@@ -112,7 +120,7 @@ class ScoopGranular(ManipulationEnv):
 
     def __init__(
         self,
-        robots,
+        robots="XArm7",
         env_configuration="default",
         controller_configs=None,
         gripper_types="SpoonGripper",
@@ -231,6 +239,8 @@ class ScoopGranular(ManipulationEnv):
 
         if controller_configs is None:
             controller_configs = load_scoop_controller_config("OSC_POSE", robot=robot_name)
+        elif difference := untuned_controller_difference(controller_configs, robot_name):
+            warnings.warn(difference, UntunedControllerWarning, stacklevel=2)
 
         super().__init__(
             robots=robots,
