@@ -116,6 +116,9 @@ def test_robomimics_states_to_obs_on_the_shipped_sample(tmp_path):
     with h5py.File(dataset) as ours, h5py.File(tmp_path / "x.hdf5") as theirs:
         assert sorted(theirs["data"]) == sorted(picked)
         for name in picked:
+            # the demo's own env_args, less the cameras robomimic rendered none of
+            kwargs = json.loads(theirs[f"data/{name}"].attrs["env_args"])["env_kwargs"]
+            assert kwargs["food"] == ours[f"data/{name}"].attrs["food"] and "camera_names" not in kwargs
             for key in keys:  # round-off between CPUs (the sample was recorded elsewhere)
                 np.testing.assert_allclose(
                     theirs[f"data/{name}/obs/{key}"][()], ours[f"data/{name}/obs/{key}"][()], rtol=0, atol=1e-9

@@ -408,6 +408,7 @@ def prepare_states_to_obs_script(module: types.ModuleType) -> None:
             robomimic_states_to_obs(args)
             _carry_attributes(args.dataset, partial)
             os.replace(partial, output)
+            print(f"renamed {os.path.basename(partial)} to {output} (written under that name until complete)")
         finally:
             args.output_name = os.path.relpath(output, folder or ".")
             if os.path.exists(partial):
@@ -419,8 +420,8 @@ def prepare_states_to_obs_script(module: types.ModuleType) -> None:
 def _carry_attributes(source: str, output: str) -> None:
     """
     Gives ``output``'s data group and demos the attributes of ``source``'s that robomimic did not write (provenance,
-    food, metrics, each demo's env_args); a demo's env_args take the env_kwargs robomimic's processing changed
-    (cameras, reward shaping) from the output's own env_args.
+    food, metrics, each demo's env_args); a demo's env_args take the env_kwargs robomimic's processing changed or
+    dropped (cameras, reward shaping) from the output's own env_args.
     """
     import h5py
 
@@ -431,6 +432,7 @@ def _carry_attributes(source: str, output: str) -> None:
         before = json.loads(data_in.attrs["env_args"])["env_kwargs"]
         after = json.loads(data_out.attrs["env_args"])["env_kwargs"]
         processing = {k: v for k, v in after.items() if _canonical(v) != _canonical(before.get(k))}
+        dropped = before.keys() - after.keys()  # robomimic drops the camera settings when it renders no camera
         for key, value in data_in.attrs.items():
             if key not in data_out.attrs:
                 data_out.attrs[key] = value
@@ -445,6 +447,8 @@ def _carry_attributes(source: str, output: str) -> None:
                 meta = json.loads(attrs_in["env_args"])
                 meta.pop(VARIANTS_KEY, None)
                 meta["env_kwargs"].update(processing)
+                for key in dropped:
+                    meta["env_kwargs"].pop(key, None)
                 attrs_out["env_args"] = json.dumps(meta)
 
 
