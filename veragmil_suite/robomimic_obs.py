@@ -107,7 +107,9 @@ def model_xml(env) -> str:
     veragmil_suite.sim_xml); otherwise it is rebuilt from the env's model, which gives the same XML until a reset_to
     loads another.
     """
-    xml = getattr(env.sim, "source_xml", None)
+    from veragmil_suite.sim_xml import source_xml
+
+    xml = source_xml(env.sim)
     return xml if xml is not None else env.edit_model_xml(env.model.get_xml())
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import re
 import warnings
 
@@ -867,11 +868,17 @@ class ScoopGranular(ManipulationEnv):
         # XML's rounded step is the whole fraction of the control period it was (check_physics_timestep)
         self.model_timestep = check_physics_timestep(float(self.sim.model.opt.timestep), self.control_freq)
         self.sim.model.opt.timestep = self.model_timestep
-        # robosuite's own processing of the XML it compiled (MujocoEnv._initialize_sim), kept with the simulation
-        xml = xml_string if xml_string else self.model.get_xml()
-        for processor in self._xml_processors:
+        keep_sim_xml(
+            self.sim, functools.partial(self._compiled_xml, xml_string, self.model, list(self._xml_processors))
+        )
+
+    @staticmethod
+    def _compiled_xml(xml_string, model, processors) -> str:
+        """The XML MujocoEnv._initialize_sim compiled: ``xml_string`` or the model's, through the XML processors."""
+        xml = xml_string if xml_string else model.get_xml()
+        for processor in processors:
             xml = processor(xml)
-        keep_sim_xml(self.sim, xml)
+        return xml
 
     def reset(self, seed: int | None = None):
         """
