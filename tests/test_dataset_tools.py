@@ -2,16 +2,13 @@
 robomimic's own get_dataset_info, playback_dataset and dataset_states_to_obs through our entry points."""
 
 import json
-import os
 import shutil
-import subprocess
-import sys
-from pathlib import Path
 
 import h5py
 import imageio
 import numpy as np
 import pytest
+from helpers.programs import run_program
 from helpers.recording import CAMERA_SIZE, record_file, tiny_env_kwargs
 
 from veragmil_suite.recording import open_dataset
@@ -24,7 +21,6 @@ from veragmil_suite.scripts.dataset_tools import (
 )
 
 STEPS = 10
-BIN = Path(sys.executable).parent
 
 
 @pytest.fixture(scope="module")
@@ -70,6 +66,8 @@ def test_merge_renumbers_and_keeps_each_demos_provenance(files, tmp_path, capsys
             )
         assert data.attrs["total"] == 4 * STEPS
         assert json.loads(data.attrs["foods"]) == ["pasta", "rice"]
+        variants = json.loads(data.attrs["env_args"])["env_kwargs_variants"]
+        assert variants == [dict(env_kwargs=dict(food="pasta"), demos=2), dict(env_kwargs=dict(food="rice"), demos=2)]
         assert len(json.loads(data.attrs["attempts"])) == 4
         masks = {k: sorted(x.decode() for x in f["mask"][k][()]) for k in f["mask"]}
         assert masks["rice"] == ["demo_2", "demo_3"] and masks["pasta"] == ["demo_0", "demo_1"]
@@ -149,17 +147,7 @@ def test_render_obs_reproduces_the_recording_and_renders_other_cameras(files, tm
 
 
 def _robomimic(command, *args, cwd):
-    result = subprocess.run(
-        [str(BIN / command), *map(str, args)],
-        cwd=cwd,
-        env=dict(os.environ, MUJOCO_GL="osmesa"),
-        stdin=subprocess.DEVNULL,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-3000:]
-    return result.stdout
+    return run_program(command, *args, cwd=cwd).stdout
 
 
 def test_robomimics_dataset_scripts_work_on_our_files(files, tmp_path):

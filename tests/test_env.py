@@ -487,17 +487,19 @@ def test_reloading_another_variants_xml_uses_that_piles_grain_sizes():
         env.reset_from_xml_string(xml)
         assert env.pile_variant == variant
         np.testing.assert_array_equal(env.grain_volumes_m3, volumes)
-    other = make_env("rice", n_grains=env.n_grains, seed=0)
-    other.reset()
-    with pytest.raises(ValueError, match="pile variants of 'barley'"):
-        env.reset_from_xml_string(model_xml(other).replace("rice", "barley"))
-    fewer = make_env("pasta", n_grains=env.n_grains - 1, seed=0)
+    # another food and grain count (a merged dataset's demos): the loaded pile is adopted
+    n_grains = env.n_grains
+    fewer = make_env("pasta", n_grains=n_grains - 1, seed=0)
     fewer.reset()
-    with pytest.raises(
-        ValueError, match=f"holds {env.n_grains - 1} grains, this environment {env.n_grains} of 'barley'"
-    ):
-        env.reset_from_xml_string(model_xml(fewer))
-    env.close(), other.close(), fewer.close()
+    env.reset_from_xml_string(model_xml(fewer))
+    assert (env.food.name, env.n_grains, env.pile_variant) == ("pasta", n_grains - 1, fewer.pile_variant)
+    np.testing.assert_array_equal(env.grain_volumes_m3, fewer.grain_volumes_m3)
+    env.reset()
+    assert (env.food.name, env.n_grains) == ("barley", n_grains)  # a fresh model is the env's own food again
+    rgba = " ".join(f"{v:g}" for v in fewer.food.rgba)
+    with pytest.raises(ValueError, match=f"the loaded model's {n_grains - 1} grains are none of the first 64 piles"):
+        env.reset_from_xml_string(model_xml(fewer).replace(f'rgba="{rgba}"', 'rgba="0.1 0.2 0.3 1"'))
+    env.close(), fewer.close()
 
 
 def test_physics_timestep_sets_the_substeps_and_a_recorded_xml_keeps_its_own():

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import json
 
 import numpy as np
 from robosuite.controllers import load_composite_controller_config, load_part_controller_config
@@ -191,3 +192,70 @@ def load_scoop_controller_config(controller: str = "OSC_POSE", robot: str = "XAr
             "held_qpos": {part: [float(v) for v in q] for part, q in layout.held_qpos.items()}
         }
     return config
+
+
+class UntunedControllerWarning(UserWarning):
+    """ScoopGranular was made with a controller config other than the ones its data, expert and devices were tuned
+    for (load_scoop_controller_config): the same action moves the spoon differently."""
+
+
+def untuned_controller_difference(config, robot: str) -> str:
+    """
+    What makes ``config`` (a composite controller config, or a robosuite <= 1.4 arm part config) differ from the
+    closest of load_scoop_controller_config's configs for ``robot``, in one sentence; "" when it is one of them.
+    """
+    tuned = {name: load_scoop_controller_config(name, robot) for name in _tuned_controllers(robot)}
+    config = _plain(config)
+    if not isinstance(config, dict):
+        return f"controller_configs {config!r} is not a controller config dict"
+    if "body_parts" in config:
+        composite, part = config.get("type"), config["body_parts"].get(SPOON_ARM, {})
+    else:  # robosuite <= 1.4: the arm's part alone, which robosuite puts in its BASIC composite
+        composite, part = "BASIC", config
+    name = part.get("type") if part.get("type") in tuned else ARM_CONTROLLERS[0]
+    reference = _plain(tuned[name])
+    differences = []
+    if composite != reference["type"]:
+        differences.append(f"composite type {composite} (tuned: {reference['type']})")
+    reference_part = reference["body_parts"][SPOON_ARM]
+    for key in sorted(set(part) & set(reference_part)):
+        if not _same(part[key], reference_part[key]):
+            differences.append(f"{SPOON_ARM} arm {key} {_short(part[key])} (tuned: {_short(reference_part[key])})")
+    missing = sorted(set(reference_part) - set(part))
+    if missing:
+        differences.append(f"{SPOON_ARM} arm without {', '.join(missing)}")
+    if not differences:
+        return ""
+    return (
+        f"controller_configs differ from the controller ScoopGranular's demonstrations, expert and devices were tuned "
+        f"for on {robot} (veragmil_suite.controllers.load_scoop_controller_config({name!r}, robot={robot!r})): "
+        f"{'; '.join(differences)}. The same action moves the spoon differently than in the recorded data"
+    )
+
+
+def _tuned_controllers(robot: str) -> tuple[str, ...]:
+    return tuple(name for name in ARM_CONTROLLERS if name != "IK_POSE" or robot in IK_ROBOTS)
+
+
+def _plain(value):
+    """``value`` as JSON gives it back (datasets store configs as JSON: tuples become lists)."""
+    try:
+        return json.loads(json.dumps(value))
+    except (TypeError, ValueError):
+        return value
+
+
+def _same(a, b) -> bool:
+    if a == b:
+        return True
+    try:
+        a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    except (TypeError, ValueError):
+        return False
+    return a.shape == b.shape and np.allclose(a, b, rtol=1e-9, atol=0)
+
+
+def _short(value) -> str:
+    if isinstance(value, list) and all(isinstance(v, (int, float)) for v in value):
+        return "[" + ", ".join(f"{v:.4g}" for v in value) + "]"
+    return f"{value:.4g}" if isinstance(value, float) else repr(value)

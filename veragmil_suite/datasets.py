@@ -20,6 +20,7 @@ from veragmil_suite.recording import (
     COMPATIBLE_KWARGS,
     DatasetError,
     demo_names,
+    env_kwargs_variants,
     interrupted_writes,
     open_dataset,
     refresh_summary,
@@ -67,6 +68,7 @@ def dataset_summary(path: str | Path) -> dict:
         duplicates = _duplicate_demos(data, names)
         interrupted = interrupted_writes(f)
         attempts = json.loads(data.attrs.get("attempts", "[]"))
+        variants = env_kwargs_variants(f)
         provenance = {k: _plain(data.attrs[k]) for k in data.attrs if k not in _SUMMARY_ATTRS}
     known = [d for d in demos if d["success"] is not None]
     success_times = [d["completion_time_s"] for d in known if d["success"]]
@@ -90,6 +92,7 @@ def dataset_summary(path: str | Path) -> dict:
             control_freq=control_freq,
             horizon=kwargs.get("horizon"),
             cameras=kwargs.get("camera_names") if kwargs.get("use_camera_obs") else [],
+            env_kwargs_variants=variants,
         ),
         demos=len(names),
         transitions=int(lengths.sum()),

@@ -11,6 +11,10 @@ One file layout, defined here and nowhere else (robomimic's, plus our provenance
                                    object-state), the task's object keys one by one, camera images upright
     mask/train, mask/valid, mask/<food>, mask/success   robomimic filter keys (demo names)
 
+Each demo's env_args are those it was recorded with; ``data``'s are the first recording's, plus, once demos of
+another food, grain count or other env_kwargs are appended or merged in, ``env_kwargs_variants``
+(:func:`env_kwargs_variants`): what differs between the demos, and how many demos have each.
+
 The file is closed between episodes, so killing the collecting process (SIGINT or SIGKILL) mid-episode leaves
 every finished episode readable. An episode is written under a temporary name and renamed to ``demo_N`` once
 complete; appending continues the numbering. Recording starts from robomimic's ``reset_to(get_state())``
@@ -51,6 +55,8 @@ DEMO_PREFIX = "demo_"
 PENDING_GROUP = "incomplete"
 _PENDING_PREFIX = "incomplete_"  # where older versions kept a demo being written: in data/, under this prefix
 IMAGE_COMPRESSION = dict(compression="gzip", compression_opts=4, shuffle=True)
+# the key of data's env_args that lists the env_kwargs its demos differ in (env_kwargs_variants)
+VARIANTS_KEY = "env_kwargs_variants"
 # env_kwargs that must agree for demos to share a file: they fix the action and observation spaces
 COMPATIBLE_KWARGS = ("robots", "controller_configs", "control_freq", "camera_names", "camera_heights", "camera_widths")
 METRIC_KEYS = (
@@ -492,14 +498,47 @@ def seeds_used(f: h5py.File) -> set[int]:
 
 
 def refresh_summary(f: h5py.File, valid_ratio: float = 0.1, seed: int = 0) -> None:
-    """Recompute what summarizes the demos: ``total``, the foods, devices and operators seen, and the masks."""
+    """Recompute what summarizes the demos: ``total``, the foods, devices and operators seen, the env_kwargs
+    variants in ``env_args`` (:func:`env_kwargs_variants`), and the masks."""
     data = f["data"]
     names = demo_names(f)
     data.attrs["total"] = int(sum(int(data[n].attrs["num_samples"]) for n in names))
     for key in ("food", "device", "operator"):
         values = sorted({str(data[n].attrs.get(key, "")) for n in names} - {""})
         data.attrs[key + "s"] = json.dumps(values)
+    meta = json.loads(data.attrs["env_args"])
+    variants = env_kwargs_variants(f)
+    if variants != meta.get(VARIANTS_KEY):
+        if variants:
+            meta[VARIANTS_KEY] = variants
+        else:
+            meta.pop(VARIANTS_KEY, None)
+        data.attrs["env_args"] = json.dumps(meta, indent=4)
     write_masks(f, valid_ratio, seed)
+
+
+def env_kwargs_variants(f: h5py.File) -> list[dict]:
+    """
+    The env_kwargs in which a file's demos differ from the file's env_args (each demo's own env_args; the file's
+    for a demo without), one entry per combination, in the order of the demos:
+    ``[{"env_kwargs": {"food": "rice", "n_grains": null}, "demos": 2}, ...]`` (null: not given, the default).
+    Empty when every demo was recorded with the file's env_kwargs.
+    """
+    data = f["data"]
+    ours = json.loads(data.attrs["env_args"]).get("env_kwargs", {})
+    per_demo = [
+        json.loads(data[n].attrs["env_args"]).get("env_kwargs", {}) if "env_args" in data[n].attrs else ours
+        for n in demo_names(f)
+    ]
+    keys = sorted(
+        {k for kwargs in per_demo for k in {*kwargs, *ours} if _canonical(kwargs.get(k)) != _canonical(ours.get(k))}
+    )
+    variants: dict[str, dict] = {}
+    for kwargs in per_demo:
+        values = {k: kwargs.get(k) for k in keys}
+        entry = variants.setdefault(_canonical(values), dict(env_kwargs=values, demos=0))
+        entry["demos"] += 1
+    return list(variants.values()) if keys else []
 
 
 def write_masks(f: h5py.File, valid_ratio: float = 0.1, seed: int = 0) -> dict[str, list[str]]:

@@ -36,6 +36,19 @@ and model XML come from veragmil_suite.robomimic_obs, the conversion the dataset
       now ends the rollout instead of stepping a broken simulation to the horizon.
     - every offscreen renderer probed for EGL GPUs (egl_probe), even with MUJOCO_GL=osmesa: only EGL probes.
 
+Datasets of several foods (a merged file, or demos of another food or grain count appended; each demo keeps its own
+env_args, and veragmil_suite.recording lists what differs in the file's as ``env_kwargs_variants``):
+    - robomimic builds one environment from the file's env_args, the first food's. A demo's model XML is loaded
+      into it as it is (ScoopGranular adopts the food and grain count of a model it loads), so playback,
+      dataset_states_to_obs and reset_to work on every demo.
+    - rollouts (training's and run_trained_agent's) only ever saw that first food. The env metadata read from a
+      dataset carries its env_kwargs variants (from the demos' own env_args; robomimic saves it in checkpoints),
+      and an environment made from it goes to the next variant at every reset: successive episodes go through the
+      dataset's foods in turn. serialize() keeps the variants.
+    - dataset_states_to_obs wrote its output in place, leaving a partial file when it failed, and dropped every
+      demo's attributes but model_file and num_samples: it writes a temporary file, renamed over the output only
+      once complete, and each demo keeps its attributes (its env_args with the processing's camera settings).
+
 robomimic's train.py:
     - a relative ``train.output_dir`` resolved against robomimic's package folder (site-packages): it resolves
       against the working directory.
@@ -65,6 +78,7 @@ import copy
 import functools
 import importlib.machinery
 import importlib.util
+import json
 import os
 import re
 import sys
@@ -103,10 +117,15 @@ def install() -> None:
 
     from robomimic.algo.algo import Algo
     from robomimic.envs.env_robosuite import EnvRobosuite
-    from robomimic.utils import env_utils, obs_utils, train_utils
+    from robomimic.utils import env_utils, file_utils, obs_utils, train_utils
 
     env_utils.create_env_from_metadata = _create_env_from_metadata(env_utils.create_env_from_metadata)
+    env_utils.create_env_for_data_processing = _with_variants(env_utils.create_env_for_data_processing, in_turn=False)
+    file_utils.get_env_metadata_from_dataset = _with_dataset_variants(file_utils.get_env_metadata_from_dataset)
     EnvRobosuite.__init__ = _env_init
+    EnvRobosuite.reset = _next_variant_at_reset(EnvRobosuite.reset)
+    EnvRobosuite.reset_to = _same_variant_in_reset_to(EnvRobosuite.reset_to)
+    EnvRobosuite.serialize = _serialize_with_variants(EnvRobosuite.serialize)
     EnvRobosuite.step = _env_step
     EnvRobosuite.get_observation = _env_get_observation
     EnvRobosuite.get_state = _env_get_state
@@ -174,7 +193,8 @@ def _registered_keys(modality: str) -> list[str]:
 
 
 def _create_env_from_metadata(create):
-    """robomimic's create_env_from_metadata, dropping an env_name stored inside env_kwargs."""
+    """robomimic's create_env_from_metadata, dropping an env_name stored inside env_kwargs, with env_meta's
+    env_kwargs variants (see _with_variants)."""
     if getattr(create, "_drops_env_name", False):
         return create
 
@@ -185,7 +205,7 @@ def _create_env_from_metadata(create):
         return create(env_meta, *args, **kwargs)
 
     create_env_from_metadata._drops_env_name = True
-    return create_env_from_metadata
+    return _with_variants(create_env_from_metadata)
 
 
 def _env_init(
@@ -240,11 +260,196 @@ def _env_init(
     self._is_v1 = True
     self._env_name = env_name
     self._init_kwargs = copy.deepcopy(kwargs)
-    self.env = robosuite.make(env_name, **kwargs)
+    self.env = _make_robosuite_env(env_name, kwargs)
+    self.env_kwargs_variants = []
+
+
+def _make_robosuite_env(env_name: str, kwargs: dict):
+    import robosuite
+
+    env = robosuite.make(env_name, **kwargs)
     # robomimic's datasets use joint positions, which robosuite may leave inactive
-    for name in self.env.observation_names:
+    for name in env.observation_names:
         if "joint_pos" in name:
-            self.env.modify_observable(observable_name=name, attribute="active", modifier=True)
+            env.modify_observable(observable_name=name, attribute="active", modifier=True)
+    return env
+
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# Datasets of several foods                                                                                          #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+def _with_dataset_variants(get_env_metadata):
+    """robomimic's get_env_metadata_from_dataset, plus the dataset's env_kwargs variants as its demos' own env_args
+    give them (veragmil_suite.recording.env_kwargs_variants), or as the file lists them when no demo has its own."""
+    if getattr(get_env_metadata, "_adds_variants", False):
+        return get_env_metadata
+
+    @functools.wraps(get_env_metadata)
+    def get_env_metadata_from_dataset(dataset_path, *args, **kwargs):
+        import h5py
+
+        from veragmil_suite.recording import VARIANTS_KEY, demo_names, env_kwargs_variants
+
+        env_meta = get_env_metadata(dataset_path, *args, **kwargs)
+        with h5py.File(os.path.expanduser(dataset_path), "r") as f:
+            if any("env_args" in f["data"][name].attrs for name in demo_names(f)):
+                env_meta.pop(VARIANTS_KEY, None)
+                variants = env_kwargs_variants(f)
+                if variants:
+                    env_meta[VARIANTS_KEY] = variants
+        return env_meta
+
+    get_env_metadata_from_dataset._adds_variants = True
+    return get_env_metadata_from_dataset
+
+
+def _with_variants(create, in_turn: bool = True):
+    """
+    A robomimic env factory (create_env_from_metadata, create_env_for_data_processing) whose envs keep env_meta's
+    env_kwargs variants (serialize), and with ``in_turn`` take them in turn at every reset (_next_variant_at_reset).
+    Data processing loads each demo's own model (reset_to): it stays with one environment.
+    """
+    if getattr(create, "_attaches_variants", False):
+        return create
+
+    @functools.wraps(create)
+    def create_with_variants(env_meta, *args, **kwargs):
+        from robomimic.envs.env_robosuite import EnvRobosuite
+
+        from veragmil_suite.recording import VARIANTS_KEY
+
+        env = create(env_meta, *args, **kwargs)
+        if isinstance(env, EnvRobosuite):
+            env.env_kwargs_variants = copy.deepcopy(env_meta.get(VARIANTS_KEY) or [])
+            env._variants_in_turn = in_turn
+            env._variant_index = -1
+            env._variant_envs = {_canonical(env._init_kwargs): env.env}
+        return env
+
+    create_with_variants._attaches_variants = True
+    return create_with_variants
+
+
+def _next_variant_at_reset(reset):
+    """EnvRobosuite.reset, first moving an env with env_kwargs variants to the next one (made when first needed):
+    rollouts go through a multi-food dataset's foods in turn, starting with its first demo's."""
+
+    @functools.wraps(reset)
+    def reset_next_variant(self):
+        variants = getattr(self, "env_kwargs_variants", None)
+        if variants and getattr(self, "_variants_in_turn", False) and not getattr(self, "_holding_variant", False):
+            self._variant_index = (self._variant_index + 1) % len(variants)
+            kwargs = copy.deepcopy(self._init_kwargs)
+            for key, value in variants[self._variant_index]["env_kwargs"].items():
+                if value is None:
+                    kwargs.pop(key, None)  # not given in that demo's env_kwargs: the environment's default
+                else:
+                    kwargs[key] = value
+            key = _canonical(kwargs)
+            if key not in self._variant_envs:
+                self._variant_envs[key] = _make_robosuite_env(self._env_name, kwargs)
+            self.env = self._variant_envs[key]
+        return reset(self)
+
+    return reset_next_variant
+
+
+def _same_variant_in_reset_to(reset_to):
+    """EnvRobosuite.reset_to, whose own reset stays with the current variant (the state loaded is its episode's)."""
+
+    @functools.wraps(reset_to)
+    def reset_to_same_variant(self, state):
+        holding = getattr(self, "_holding_variant", False)
+        self._holding_variant = True
+        try:
+            return reset_to(self, state)
+        finally:
+            self._holding_variant = holding
+
+    return reset_to_same_variant
+
+
+def _serialize_with_variants(serialize):
+    """EnvRobosuite.serialize, keeping the env_kwargs variants (robomimic writes it into the files it makes)."""
+
+    @functools.wraps(serialize)
+    def serialize_with_variants(self):
+        from veragmil_suite.recording import VARIANTS_KEY
+
+        meta = serialize(self)
+        if getattr(self, "env_kwargs_variants", None):
+            meta[VARIANTS_KEY] = copy.deepcopy(self.env_kwargs_variants)
+        return meta
+
+    return serialize_with_variants
+
+
+def _canonical(value) -> str:
+    return json.dumps(value, sort_keys=True, default=str)
+
+
+def prepare_states_to_obs_script(module: types.ModuleType) -> None:
+    """
+    Patches the namespace of robomimic.scripts.dataset_states_to_obs (imported, not yet run) for one run: its
+    output is written under a temporary name beside it and renamed once complete (a failed run leaves the output
+    as it was), and each demo keeps the input's attributes (see _carry_attributes).
+    """
+    robomimic_states_to_obs = getattr(module.dataset_states_to_obs, "__wrapped__", module.dataset_states_to_obs)
+
+    @functools.wraps(robomimic_states_to_obs)
+    def dataset_states_to_obs(args):
+        folder = os.path.dirname(args.dataset)
+        output = os.path.join(folder, args.output_name)
+        partial = os.path.join(os.path.dirname(output), f".{os.path.basename(output)}.{os.getpid()}.partial")
+        args.output_name = os.path.relpath(partial, folder or ".")
+        try:
+            robomimic_states_to_obs(args)
+            _carry_attributes(args.dataset, partial)
+            os.replace(partial, output)
+            print(f"renamed {os.path.basename(partial)} to {output} (written under that name until complete)")
+        finally:
+            args.output_name = os.path.relpath(output, folder or ".")
+            if os.path.exists(partial):
+                os.remove(partial)
+
+    module.dataset_states_to_obs = dataset_states_to_obs
+
+
+def _carry_attributes(source: str, output: str) -> None:
+    """
+    Gives ``output``'s data group and demos the attributes of ``source``'s that robomimic did not write (provenance,
+    food, metrics, each demo's env_args); a demo's env_args take the env_kwargs robomimic's processing changed or
+    dropped (cameras, reward shaping) from the output's own env_args.
+    """
+    import h5py
+
+    from veragmil_suite.recording import VARIANTS_KEY
+
+    with h5py.File(source, "r") as fin, h5py.File(output, "a") as fout:
+        data_in, data_out = fin["data"], fout["data"]
+        before = json.loads(data_in.attrs["env_args"])["env_kwargs"]
+        after = json.loads(data_out.attrs["env_args"])["env_kwargs"]
+        processing = {k: v for k, v in after.items() if _canonical(v) != _canonical(before.get(k))}
+        dropped = before.keys() - after.keys()  # robomimic drops the camera settings when it renders no camera
+        for key, value in data_in.attrs.items():
+            if key not in data_out.attrs:
+                data_out.attrs[key] = value
+        for name in data_out:
+            if name not in data_in:
+                continue
+            attrs_in, attrs_out = data_in[name].attrs, data_out[name].attrs
+            for key, value in attrs_in.items():
+                if key not in attrs_out:
+                    attrs_out[key] = value
+            if "env_args" in attrs_in:
+                meta = json.loads(attrs_in["env_args"])
+                meta.pop(VARIANTS_KEY, None)
+                meta["env_kwargs"].update(processing)
+                for key in dropped:
+                    meta["env_kwargs"].pop(key, None)
+                attrs_out["env_args"] = json.dumps(meta)
 
 
 def _env_step(self, action):

@@ -102,11 +102,14 @@ def model_xml(env) -> str:
     reset_to takes it and robomimic's get_state stores it.
 
     Not ``env.sim.model.get_xml()``: MuJoCo saves the *last XML it parsed* in the process, and a reset that settles
-    a new pile or measures grain inertias (or another environment) parses models of its own. A sim compiled after
-    :func:`remember_sim_xml` knows its own XML; otherwise it is rebuilt from the env's model, which gives the same
-    XML until a reset_to loads another.
+    a new pile or measures grain inertias (or another environment) parses models of its own. ScoopGranular's sims
+    and any sim compiled after :func:`remember_sim_xml` know their own XML (``source_xml``, see
+    veragmil_suite.sim_xml); otherwise it is rebuilt from the env's model, which gives the same XML until a reset_to
+    loads another.
     """
-    xml = getattr(env.sim, "source_xml", None)
+    from veragmil_suite.sim_xml import source_xml
+
+    xml = source_xml(env.sim)
     return xml if xml is not None else env.edit_model_xml(env.model.get_xml())
 
 

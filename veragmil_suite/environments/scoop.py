@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import functools
 import re
+import warnings
 
 import mujoco
 import numpy as np
@@ -11,9 +13,14 @@ from robosuite.environments.manipulation.manipulation_env import ManipulationEnv
 from robosuite.utils.mjcf_utils import array_to_string, find_elements, new_element
 from robosuite.utils.observables import Observable, sensor
 
-from veragmil_suite.controllers import leave_heading_free, load_scoop_controller_config
+from veragmil_suite.controllers import (
+    UntunedControllerWarning,
+    leave_heading_free,
+    load_scoop_controller_config,
+    untuned_controller_difference,
+)
 from veragmil_suite.fast_control import use_block_mass_matrix
-from veragmil_suite.foods import DEFAULT_PHYSICS, FoodSpec, GrainModel, check_physics, get_food
+from veragmil_suite.foods import DEFAULT_PHYSICS, FOODS, PHYSICS, FoodSpec, GrainModel, check_physics, get_food
 from veragmil_suite.humanoid import SPOON_ARM, HumanoidLayout, check_robot, humanoid_layout, self_contact_excludes
 from veragmil_suite.kinematics import solve_pose_ik
 from veragmil_suite.models.arena import ScoopArena
@@ -30,10 +37,13 @@ from veragmil_suite.models.scoop_task import (
 )
 from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
 from veragmil_suite.settling import SettledPile, pile_key, settle
+from veragmil_suite.sim_xml import keep_sim_xml
 
 M3_PER_CM3 = 1e-6
 # the largest grain count accepted, as a multiple of the food's default (veragmil_suite.bench times 1x, 2x and 4x)
 MAX_GRAINS_PER_DEFAULT = 4
+# pile variants tried when a loaded model's pile is identified (beyond the environment's own pile_variants)
+LOADED_PILE_VARIANTS_TRIED = 64
 
 # Spoon orientations in the world, as rotation matrices of the flange (eef) frame. Pre-scoop: the tool points
 # straight down, so the bent spoon's tip points down at 45 degrees along +x (away from the robot), its bowl
@@ -56,10 +66,12 @@ class ScoopGranular(ManipulationEnv):
         robots (str or list of str): Specification for specific robot arm to be instantiated within this env
             (e.g: "XArm7"). Note: Must be a single single-arm robot, or the Unitree G1 ("G1FixedLowerBody",
             "G1ArmsOnly", with robosuite-models), which the task places at the table (veragmil_suite.humanoid): it
-            scoops with its right hand, and its left arm and torso hold still.
+            scoops with its right hand, and its left arm and torso hold still. Default: XArm7.
         env_configuration (str): Specifies how to position the robots within the environment (default is "default").
         controller_configs (str or dict): composite controller config. None gives OSC_POSE (see
-            veragmil_suite.controllers.load_scoop_controller_config, which also offers robosuite's IK_POSE).
+            veragmil_suite.controllers.load_scoop_controller_config, which also offers robosuite's IK_POSE); any
+            other config (robosuite's own defaults among them) is warned about once, naming what differs
+            (UntunedControllerWarning).
         gripper_types (str): end-effector; default "SpoonGripper" (a two-armed robot holds it in its right hand and
             nothing in its left)
         base_types (str): robot base type; "default" uses the robot's own
@@ -97,6 +109,9 @@ class ScoopGranular(ManipulationEnv):
         physics_timestep_s (float): the physics step (s), a whole number of them per control period (default
             veragmil_suite.models.scoop_task.PHYSICS_TIMESTEP_S, 1/240 s). A recorded XML loaded later
             (reset_from_xml_string) runs at the step it was recorded with.
+        A model loaded with reset_from_xml_string (any ScoopGranular XML a tool saved, MuJoCo's rounded numbers
+        included) brings its own food, grain count, pile and physics step: the environment adopts them until its
+        next fresh model, which is of the food and grain count given here again.
         (robosuite's usual arguments: has_renderer, has_offscreen_renderer, render_camera, render_collision_mesh,
         render_visual_mesh, render_gpu_device_id, control_freq, lite_physics, horizon, ignore_done, hard_reset,
         camera_names, camera_heights, camera_widths, camera_depths, camera_segmentations, renderer,
@@ -108,7 +123,7 @@ class ScoopGranular(ManipulationEnv):
 
     def __init__(
         self,
-        robots,
+        robots="XArm7",
         env_configuration="default",
         controller_configs=None,
         gripper_types="SpoonGripper",
@@ -171,6 +186,9 @@ class ScoopGranular(ManipulationEnv):
         if n_grains is not None and (not isinstance(n_grains, (int, np.integer)) or n_grains <= 0):
             raise ValueError(f"n_grains must be a positive integer or None (the food's default), got {n_grains!r}")
         self.n_grains = int(n_grains) if n_grains is not None else self.grain.default_grains
+        # food, physics and n_grains are the simulation's (a loaded model's may differ); these are what fresh
+        # models get
+        self._env_food, self._env_physics, self._env_n_grains = self.food, self.physics, self.n_grains
         limit = MAX_GRAINS_PER_DEFAULT * self.grain.default_grains
         if self.n_grains > limit:
             raise ValueError(
@@ -228,6 +246,8 @@ class ScoopGranular(ManipulationEnv):
 
         if controller_configs is None:
             controller_configs = load_scoop_controller_config("OSC_POSE", robot=robot_name)
+        elif difference := untuned_controller_difference(controller_configs, robot_name):
+            warnings.warn(difference, UntunedControllerWarning, stacklevel=2)
 
         super().__init__(
             robots=robots,
@@ -349,6 +369,8 @@ class ScoopGranular(ManipulationEnv):
         self.bowl = Bowl(name="bowl", shape=self.bowl_shape)
         # One of a few piles per food: each is settled once per machine (veragmil_suite.settling), and the same
         # seed always draws the same one, so the same seed gives the same XML.
+        self.food, self.n_grains, self.physics = self._env_food, self._env_n_grains, self._env_physics
+        self.grain = self.food.grain(self.physics)
         self.pile_variant = int(self.rng.integers(self.pile_variants))
         self.grain_pile = self._pile(self.pile_variant)
 
@@ -372,14 +394,15 @@ class ScoopGranular(ManipulationEnv):
         """MuJoCo <option> attributes of the scene and of settling: the defaults, updated by physics_solver_options."""
         return {**PHYSICS_SOLVER_OPTIONS[self.physics], **(self.physics_solver_options or {})}
 
-    def _pile(self, variant: int) -> GrainPile:
-        """Pile variant ``variant`` of this food and grain count (the same on every machine)."""
-        return GrainPile(
-            self.food,
-            self.n_grains,
-            np.random.default_rng([variant, self.n_grains, *map(ord, self.food.name)]),
-            physics=self.physics,
-        )
+    def _pile(
+        self, variant: int, food: FoodSpec | None = None, n_grains: int | None = None, physics: str | None = None
+    ) -> GrainPile:
+        """Pile variant ``variant`` of this (or the given) food, grain count and physics (the same on every machine)."""
+        food = self.food if food is None else food
+        n_grains = self.n_grains if n_grains is None else n_grains
+        physics = self.physics if physics is None else physics
+        rng = np.random.default_rng([variant, n_grains, *map(ord, food.name)])
+        return GrainPile(food, n_grains, rng, physics=physics)
 
     def settled_piles(self) -> dict[str, SettledPile]:
         """
@@ -390,48 +413,56 @@ class ScoopGranular(ManipulationEnv):
         timestep = float(self.sim.model.opt.timestep)
         piles = {}
         for variant in range(self.pile_variants):
-            pile = self._pile(variant)
+            pile = self._pile(variant, self._env_food, self._env_n_grains, self._env_physics)
             piles[pile_key(self.bowl, pile, self.solver_options, timestep)] = settle(
                 self.bowl, pile, self.solver_options, timestep
             )
         return piles
 
-    def _check_loaded_grain_count(self) -> None:
-        """A recorded XML of another food or grain count (a merged multi-food dataset) fails here, clearly."""
-        pattern = re.compile(rf"{re.escape(self.grain_pile.name)}\d+")
-        loaded = sum(1 for name in self.sim.model.body_names if pattern.fullmatch(name))
-        if loaded != self.n_grains:
-            raise ValueError(
-                f"the loaded model holds {loaded} grains, this environment {self.n_grains} of {self.food.name!r}: "
-                "make the environment with the env_kwargs the model was recorded with (each demo stores its own in "
-                "its 'env_args' attribute)"
-            )
-
-    def _match_loaded_pile(self) -> None:
+    def _adopt_loaded_pile(self) -> None:
         """
-        Points grain_pile at the variant the simulation was built from.
+        Makes food, n_grains, pile_variant and grain_pile those of the pile the simulation was built from.
 
-        reset_from_xml_string (robomimic's reset_to, playback) may load a recorded XML of another variant than the
-        one drawn last, and the grain volumes and sizes the metrics use must be that XML's.
+        reset_from_xml_string (robosuite's playback, robomimic's reset_to, a merged dataset of several foods) may
+        load a recorded XML of another food, grain count or pile variant than the one drawn last: the metrics and
+        observations must use that pile's grain sizes and volumes. The pile is found among the environment's own
+        food's and the catalog's (veragmil_suite.foods.FOODS) piles of the grain colour and count loaded.
         """
         model = self.sim.model
-        loaded = model.geom_size[model.body_geomadr[self.grain_body_ids]]
+        pattern = re.compile(rf"{re.escape(self.grain_pile.name)}(\d+)")
+        n_loaded = sum(1 for name in model.body_names if pattern.fullmatch(name))
+        body_ids = [model.body_name2id(f"{self.grain_pile.name}{i}") for i in range(n_loaded)]
+        first_geoms = model.body_geomadr[body_ids]
+        loaded = model.geom_size[first_geoms]
+        rgba = model.geom_rgba[first_geoms[0]] if n_loaded else None
 
         # saved XML keeps 6 significant digits; variants' sizes are drawn from a continuous range
-        def first_geom_sizes(pile: GrainPile) -> np.ndarray:
-            return np.array([np.pad(g[0]["size"], (0, 3 - len(g[0]["size"]))) for g in pile.geoms])
+        def holds(pile: GrainPile) -> bool:
+            sizes = np.array([np.pad(g[0]["size"], (0, 3 - len(g[0]["size"]))) for g in pile.geoms])
+            return np.allclose(sizes, loaded, rtol=1e-5, atol=0)
 
-        if np.allclose(first_geom_sizes(self.grain_pile), loaded, rtol=1e-5, atol=0):
+        if n_loaded == self.grain_pile.n_grains and holds(self.grain_pile):
             return
-        for variant in range(self.pile_variants):
-            pile = self._pile(variant)
-            if np.allclose(first_geom_sizes(pile), loaded, rtol=1e-5, atol=0):
-                self.pile_variant, self.grain_pile = variant, pile
-                return
+        foods = []
+        for food in (self._env_food, self.food, *FOODS.values()):
+            if all(food.name != f.name for f in foods):
+                foods.append(food)
+        tried = max(self.pile_variants, LOADED_PILE_VARIANTS_TRIED)
+        physics_order = [self._env_physics, *(p for p in PHYSICS if p != self._env_physics)]
+        for food in foods:
+            if n_loaded == 0 or not np.allclose(food.rgba, rgba, atol=1e-5):
+                continue
+            for physics in physics_order:
+                for variant in range(tried):
+                    pile = self._pile(variant, food, n_loaded, physics)
+                    if holds(pile):
+                        self.food, self.n_grains, self.pile_variant, self.grain_pile = food, n_loaded, variant, pile
+                        self.physics, self.grain = physics, food.grain(physics)
+                        return
         raise ValueError(
-            f"the loaded model's grains match none of the {self.pile_variants} pile variants of "
-            f"{self.food.name!r} with {self.n_grains} grains: make the environment with the food, n_grains and "
-            "pile_variants the model was recorded with"
+            f"the loaded model's {n_loaded} grains are none of the first {tried} piles of {n_loaded} grains of any "
+            f"known food ({', '.join(f.name for f in foods)}): register its food (veragmil_suite.foods.register_food) "
+            "or make the environment with it"
         )
 
     def _setup_references(self):
@@ -445,11 +476,10 @@ class ScoopGranular(ManipulationEnv):
         self.bowl_body_id = model.body_name2id(self.bowl.root_body)
         self.bowl_qpos_adr = model.get_joint_qpos_addr(self.bowl.joints[0])[0]
         self.bowl_qvel_adr = model.get_joint_qvel_addr(self.bowl.joints[0])[0]
-        self._check_loaded_grain_count()
+        self._adopt_loaded_pile()
         self.grain_body_ids = np.array([model.body_name2id(n) for n in self.grain_pile.body_names])
         self.grain_qpos_adr = np.array([model.get_joint_qpos_addr(n)[0] for n in self.grain_pile.joint_names])
         self.grain_qvel_adr = np.array([model.get_joint_qvel_addr(n)[0] for n in self.grain_pile.joint_names])
-        self._match_loaded_pile()
         gripper = self.robots[0].gripper[SPOON_ARM]
         self.spoon_site_id = model.site_name2id(gripper.important_sites["spoon_frame"])
         self.spoon_geom_ids = np.array([model.geom_name2id(n) for n in gripper.important_geoms["spoon"]])
@@ -856,8 +886,21 @@ class ScoopGranular(ManipulationEnv):
     def _initialize_sim(self, xml_string=None):
         super()._initialize_sim(xml_string)
         self._badqacc_seen = 0
-        # a recorded XML runs at the step it was recorded with (datasets keep their own physics)
+        # a recorded XML runs at the step it was recorded with (datasets keep their own physics), exactly: a saved
+        # XML's rounded step is the whole fraction of the control period it was (check_physics_timestep)
         self.model_timestep = check_physics_timestep(float(self.sim.model.opt.timestep), self.control_freq)
+        self.sim.model.opt.timestep = self.model_timestep
+        keep_sim_xml(
+            self.sim, functools.partial(self._compiled_xml, xml_string, self.model, list(self._xml_processors))
+        )
+
+    @staticmethod
+    def _compiled_xml(xml_string, model, processors) -> str:
+        """The XML MujocoEnv._initialize_sim compiled: ``xml_string`` or the model's, through the XML processors."""
+        xml = xml_string if xml_string else model.get_xml()
+        for processor in processors:
+            xml = processor(xml)
+        return xml
 
     def reset(self, seed: int | None = None):
         """

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 
+import numpy as np
 from robosuite.models.tasks import ManipulationTask
 
 from veragmil_suite.foods import CONTACT_TIMECONST_S
@@ -62,10 +63,17 @@ def check_sleep_tolerance(value) -> float | None:
     return float(value)
 
 
+# MuJoCo saves real numbers to 6 significant digits (mj_saveLastXML: robosuite's sim.model.get_xml writes 1/240 s
+# as 0.00416667): a step read back within this relative distance of a whole fraction of the control period is that
+# fraction, as it was run
+SAVED_STEP_RELATIVE_PRECISION = 1e-5
+
+
 def check_physics_timestep(timestep_s, control_freq: float) -> float:
     """
     A physics step the task runs: positive, at most half the grains' contact time constant (MuJoCo's stability
-    rule for soft contacts; a longer step stiffens them), and a whole number of steps per control period.
+    rule for soft contacts; a longer step stiffens them), and a whole number of steps per control period. A step
+    within the precision of a saved XML of such a step is that step (returned exactly).
 
     Raises:
         ValueError: [anything else; the message names the accepted steps and control frequencies]
@@ -76,18 +84,22 @@ def check_physics_timestep(timestep_s, control_freq: float) -> float:
             f"physics_timestep_s must be a positive number of seconds, at most {limit * 1000:g} ms (half the grains' "
             f"contact time constant), e.g. {PHYSICS_TIMESTEP_S!r} (1/240), got {timestep_s!r}"
         )
-    substeps = 1.0 / (control_freq * timestep_s)
-    # robosuite counts substeps as int(control period / step): a ratio just under a whole number would lose one
-    if abs(substeps - round(substeps)) > 1e-6 or int(substeps) != round(substeps):
-        frequencies = [f"{1 / (timestep_s * k):g}" for k in range(1, 1000) if abs(1 / (timestep_s * k) % 1) < 1e-6]
+    period = 1.0 / control_freq
+    substeps = max(1, round(period / timestep_s))
+    step = period / substeps
+    # robosuite counts substeps as int(control period / step): a ratio a rounding under the whole number loses one
+    if int(period / step) != substeps:
+        step = float(np.nextafter(step, 0.0))
+    if abs(timestep_s - step) > SAVED_STEP_RELATIVE_PRECISION * step:
+        frequencies = [f"{1 / (timestep_s * k):.5g}" for k in range(1, 7)]  # to the precision of a saved step
         steps = [f"1/{control_freq * k:g}" for k in range(1, 1000) if 1 / (control_freq * k) <= limit]
         raise ValueError(
-            f"control_freq={control_freq} Hz does not divide the {timestep_s * 1000:.3f} ms physics step: a control "
-            f"period must be a whole number of physics steps; accepted control frequencies (Hz) at this step: "
-            f"{', '.join(frequencies[:10])}, ...; accepted physics steps (s) at {control_freq} Hz: "
-            f"{', '.join(steps[:6])}, ..."
+            f"control_freq={control_freq} Hz does not divide the {timestep_s * 1000:.4g} ms physics step: a control "
+            f"period must be a whole number of physics steps; accepted control frequencies (Hz) at this step, "
+            f"1/(n x step) for a whole n: {', '.join(frequencies)}, ...; accepted physics steps (s) at "
+            f"{control_freq} Hz: {', '.join(steps[:6])}, ..."
         )
-    return float(timestep_s)
+    return step
 
 
 # Software (osmesa) rendering: no multisampling, coarse tessellation and no shadow map render 300 grains at

@@ -63,6 +63,12 @@ def format_summary(s: dict, verbose: bool = False) -> str:
         + ("n/a" if s["mean_completion_time_s"] is None else f"{s['mean_completion_time_s']:.2f} s on success"),
         "  per food:   demos  success  spilled(pieces)  spilled(cm3)  time(s)",
     ]  # fmt: skip
+    if env["env_kwargs_variants"]:  # demos recorded with other env_kwargs than the file's (another food, grain count)
+        variants = (
+            " ".join(f"{k}={v!r}" for k, v in variant["env_kwargs"].items()) + f" ({variant['demos']} demos)"
+            for variant in env["env_kwargs_variants"]
+        )
+        lines.insert(4, "  env kwargs per demo: " + "; ".join(variants))
     for food, r in s["per_food"].items():
         t = "n/a" if r["mean_time_s"] is None else f"{r['mean_time_s']:.2f}"
         lines.append(

@@ -133,7 +133,7 @@ def playback_dataset_main(argv: list[str] | None = None) -> int:
 
 def dataset_states_to_obs_main(argv: list[str] | None = None) -> int:
     """veragmil-robomimic-states-to-obs: robomimic's dataset_states_to_obs.py (--dataset, --output_name, ...)."""
-    return run_script(SCRIPTS["states-to-obs"], argv)
+    return run_script(SCRIPTS["states-to-obs"], argv, prepare=robomimic_compat.prepare_states_to_obs_script)
 
 
 _COMMANDS = {
