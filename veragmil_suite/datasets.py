@@ -16,6 +16,7 @@ import h5py
 import numpy as np
 
 from veragmil_suite import robomimic_obs
+from veragmil_suite.foods import with_recorded_physics
 from veragmil_suite.recording import (
     COMPATIBLE_KWARGS,
     DatasetError,
@@ -266,7 +267,7 @@ class DemoEnvs:
     def for_demo(self, g: h5py.Group):
         """The env for this demo's env_args and the overrides: the current one unless they differ."""
         meta = json.loads(g.attrs["env_args"]) if "env_args" in g.attrs else self.file_meta
-        kwargs = {k: v for k, v in meta["env_kwargs"].items() if k not in ("env_name",)}
+        kwargs = with_recorded_physics({k: v for k, v in meta["env_kwargs"].items() if k not in ("env_name",)})
         kwargs.update(self.overrides)
         kwargs.update(has_renderer=False, ignore_done=True)
         key = json.dumps(kwargs, sort_keys=True)

@@ -64,6 +64,12 @@ def check_physics(physics: str) -> str:
     return physics
 
 
+def with_recorded_physics(env_kwargs: dict) -> dict:
+    """Stored ScoopGranular kwargs with their physics named: metadata that names none was written before the physics
+    had a name, on the paper's Table I grains (PRE_CALIBRATION_PHYSICS)."""
+    return env_kwargs if "physics" in env_kwargs else {**env_kwargs, "physics": PRE_CALIBRATION_PHYSICS}
+
+
 @dataclass(frozen=True)
 class GrainModel:
     """How one food's grains are built in MuJoCo: geometry, mass and contact.

@@ -40,7 +40,7 @@ import numpy as np
 
 from veragmil_suite.asset_paths import config_path
 from veragmil_suite.distributed import Resources, ray_session, run_pieces
-from veragmil_suite.foods import FOODS, TRAINING_FOODS, UNSEEN_FOODS, get_food
+from veragmil_suite.foods import FOODS, TRAINING_FOODS, UNSEEN_FOODS, get_food, with_recorded_physics
 from veragmil_suite.rendering import use_headless_rendering
 
 # robomimic configs of configs/json per algorithm of the paper (low-dim observations)
@@ -295,7 +295,7 @@ def _recorded(path: Path) -> dict:
     from veragmil_suite.recording import demo_names, open_dataset, seeds_used
 
     with open_dataset(path) as f:
-        kwargs = json.loads(f["data"].attrs["env_args"])["env_kwargs"]
+        kwargs = with_recorded_physics(json.loads(f["data"].attrs["env_args"])["env_kwargs"])
         names = demo_names(f)
         first = f["data"][names[0]].attrs if names else {}
         tried = seeds_used(f)

@@ -43,7 +43,7 @@ import robosuite
 import veragmil_suite
 from veragmil_suite import robomimic_obs
 from veragmil_suite.environments.scoop import StageTracker
-from veragmil_suite.foods import DEFAULT_PHYSICS, PRE_CALIBRATION_PHYSICS
+from veragmil_suite.foods import DEFAULT_PHYSICS
 
 ENV_NAME = "ScoopGranular"
 ROBOSUITE_ENV_TYPE = 1  # robomimic's EnvType.ROBOSUITE_TYPE
@@ -82,12 +82,6 @@ class DatasetError(ValueError):
 # ---------------------------------------------------------------------------------------------------------------- #
 # Environment metadata                                                                                             #
 # ---------------------------------------------------------------------------------------------------------------- #
-
-
-def with_recorded_physics(env_kwargs: dict) -> dict:
-    """Stored env kwargs with their physics named: metadata that names none was written before the physics had a
-    name, on the paper's Table I grains ("table1")."""
-    return env_kwargs if "physics" in env_kwargs else {**env_kwargs, "physics": PRE_CALIBRATION_PHYSICS}
 
 
 def env_meta(env_kwargs: dict) -> dict:

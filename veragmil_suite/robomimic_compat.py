@@ -91,6 +91,7 @@ import mujoco
 import numpy as np
 
 from veragmil_suite import robomimic_obs
+from veragmil_suite.foods import with_recorded_physics
 
 # Schemas of the torchvision ops whose fake kernels torchvision registers even when its compiled library did not
 # load (the same signatures as torchvision's C++ registrations).
@@ -200,9 +201,12 @@ def _create_env_from_metadata(create):
 
     @functools.wraps(create)
     def create_env_from_metadata(env_meta, *args, **kwargs):
-        if "env_name" in env_meta.get("env_kwargs", {}):
-            env_meta = dict(env_meta, env_kwargs={k: v for k, v in env_meta["env_kwargs"].items() if k != "env_name"})
-        return create(env_meta, *args, **kwargs)
+        env_kwargs = {k: v for k, v in env_meta.get("env_kwargs", {}).items() if k != "env_name"}
+        from veragmil_suite.recording import ENV_NAME  # recording imports robosuite, which this module patches first
+
+        if env_meta.get("env_name") == ENV_NAME:
+            env_kwargs = with_recorded_physics(env_kwargs)
+        return create(dict(env_meta, env_kwargs=env_kwargs), *args, **kwargs)
 
     create_env_from_metadata._drops_env_name = True
     return _with_variants(create_env_from_metadata)
