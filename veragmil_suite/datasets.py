@@ -8,23 +8,26 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 from collections import Counter
 from pathlib import Path
 
 import h5py
 import numpy as np
 
-from veragmil_suite import robomimic_obs
+from veragmil_suite import robomimic_obs, safe_hdf5
 from veragmil_suite.recording import (
     COMPATIBLE_KWARGS,
     DatasetError,
+    action_limit,
     demo_names,
+    demo_problems,
     interrupted_writes,
     open_dataset,
     refresh_summary,
     remove_interrupted_writes,
     split_demos,
+    updated_file,
+    write_lock,
     write_masks,
 )
 
@@ -34,12 +37,17 @@ from veragmil_suite.recording import (
 
 
 def dataset_summary(path: str | Path) -> dict:
-    """What a dataset holds: demos, lengths, foods, devices, success, spillage, obs keys, filter keys, provenance."""
+    """What a dataset holds: demos, lengths, foods, devices, success, spillage, obs keys, filter keys, provenance;
+    what interrupted writes left (working copies beside it, or older versions' half-written demos in it), whether
+    another process is writing it now, and the demos that read but are flagged (``demo_problems``)."""
+    being_written = safe_hdf5.FileLock(path).in_use_elsewhere()
     with open_dataset(path) as f:
         data = f["data"]
         meta = json.loads(data.attrs["env_args"])
         kwargs = meta.get("env_kwargs", {})
         names = demo_names(f)
+        limit = action_limit(kwargs)
+        problems = {n: found for n in names if (found := demo_problems(data[n], limit))}
         control_freq = float(kwargs.get("control_freq", 20))
         lengths = np.array([int(data[n].attrs["num_samples"]) for n in names], dtype=int)
         demos = []
@@ -66,6 +74,8 @@ def dataset_summary(path: str | Path) -> dict:
         masks = {k: len(f["mask"][k]) for k in f["mask"]} if "mask" in f else {}
         duplicates = _duplicate_demos(data, names)
         interrupted = interrupted_writes(f)
+        if not being_written:
+            interrupted += [p.name for p in safe_hdf5.working_copies(path)]
         attempts = json.loads(data.attrs.get("attempts", "[]"))
         provenance = {k: _plain(data.attrs[k]) for k in data.attrs if k not in _SUMMARY_ATTRS}
     known = [d for d in demos if d["success"] is not None]
@@ -113,6 +123,8 @@ def dataset_summary(path: str | Path) -> dict:
         filter_keys=masks,
         duplicates=duplicates,
         interrupted_writes=interrupted,
+        being_written=being_written,
+        problems=problems,
         provenance=provenance,
         demo_list=demos,
     )
@@ -164,57 +176,53 @@ def merge_datasets(inputs: list[str | Path], output: str | Path, valid_ratio: fl
     if any(Path(i).resolve() == output.resolve() for i in inputs):
         raise DatasetError(f"{output} is also an input: merge into a new file")
     first_meta, first_obs, attempts, sources = None, None, [], []
-    tmp = output.with_name(output.name + ".partial")
-    try:
-        with h5py.File(tmp, "w") as fout:
-            data_out = fout.create_group("data")
-            index = 0
-            for path in inputs:
-                with open_dataset(path) as fin:
-                    data_in = fin["data"]
-                    meta = json.loads(data_in.attrs["env_args"])
-                    names = demo_names(fin)
-                    obs = {k: d.shape[1:] for k, d in data_in[names[0]]["obs"].items()} if names else None
-                    if first_meta is None:
-                        first_meta = meta
-                        for key, value in data_in.attrs.items():
-                            data_out.attrs[key] = value
-                    else:
-                        differ = [
-                            k
-                            for k in COMPATIBLE_KWARGS
-                            if json.dumps(meta["env_kwargs"].get(k), sort_keys=True)
-                            != json.dumps(first_meta["env_kwargs"].get(k), sort_keys=True)
-                        ]
-                        if differ:
-                            raise DatasetError(f"{path} was recorded with other {', '.join(differ)} than {inputs[0]}")
-                    if obs is not None:
-                        if first_obs is None:
-                            first_obs = obs
-                        elif obs != first_obs:
-                            raise DatasetError(f"{path} has other observation keys or shapes than the files before it")
-                    for name in names:
-                        new = f"demo_{index}"
-                        fin.copy(data_in[name], data_out, name=new)
-                        g = data_out[new]
-                        g.attrs["merged_from"] = f"{path}:{name}"
-                        if "env_args" not in g.attrs:
-                            g.attrs["env_args"] = json.dumps(meta)
-                        if "food" not in g.attrs and "food" in meta["env_kwargs"]:
-                            g.attrs["food"] = meta["env_kwargs"]["food"]
-                        index += 1
-                    for entry in json.loads(data_in.attrs.get("attempts", "[]")):
-                        attempts.append(dict(entry, source=str(path)))
-                    sources.append(str(path))
-            if first_meta is None:
-                raise DatasetError("no input files")
-            data_out.attrs["attempts"] = json.dumps(attempts)
-            data_out.attrs["merged_from"] = json.dumps(sources)
-            refresh_summary(fout, valid_ratio)
-        os.replace(tmp, output)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    with updated_file(output, new=True) as working:
+        fout = working.file
+        data_out = fout.create_group("data")
+        index = 0
+        for path in inputs:
+            with open_dataset(path) as fin:
+                data_in = fin["data"]
+                meta = json.loads(data_in.attrs["env_args"])
+                names = demo_names(fin)
+                obs = {k: d.shape[1:] for k, d in data_in[names[0]]["obs"].items()} if names else None
+                if first_meta is None:
+                    first_meta = meta
+                    for key, value in data_in.attrs.items():
+                        data_out.attrs[key] = value
+                else:
+                    differ = [
+                        k
+                        for k in COMPATIBLE_KWARGS
+                        if json.dumps(meta["env_kwargs"].get(k), sort_keys=True)
+                        != json.dumps(first_meta["env_kwargs"].get(k), sort_keys=True)
+                    ]
+                    if differ:
+                        raise DatasetError(f"{path} was recorded with other {', '.join(differ)} than {inputs[0]}")
+                if obs is not None:
+                    if first_obs is None:
+                        first_obs = obs
+                    elif obs != first_obs:
+                        raise DatasetError(f"{path} has other observation keys or shapes than the files before it")
+                for name in names:
+                    new = f"demo_{index}"
+                    fin.copy(data_in[name], data_out, name=new)
+                    g = data_out[new]
+                    g.attrs["merged_from"] = f"{path}:{name}"
+                    if "env_args" not in g.attrs:
+                        g.attrs["env_args"] = json.dumps(meta)
+                    if "food" not in g.attrs and "food" in meta["env_kwargs"]:
+                        g.attrs["food"] = meta["env_kwargs"]["food"]
+                    index += 1
+                for entry in json.loads(data_in.attrs.get("attempts", "[]")):
+                    attempts.append(dict(entry, source=str(path)))
+                sources.append(str(path))
+            working.check()
+        if first_meta is None:
+            raise DatasetError("no input files")
+        data_out.attrs["attempts"] = json.dumps(attempts)
+        data_out.attrs["merged_from"] = json.dumps(sources)
+        refresh_summary(fout, valid_ratio)
     return index
 
 
@@ -222,7 +230,9 @@ def split_dataset(path: str | Path, ratio: float, seed: int = 0, filter_key: str
     """Rewrite the train/valid masks of ``path`` (``<filter_key>_train/_valid`` within a filter key)."""
     if not 0 <= ratio < 1:
         raise DatasetError(f"the validation ratio must lie in [0, 1), got {ratio}")
-    with open_dataset(path, "a") as f:
+    open_dataset(path).close()  # a clear error for a file that is not a dataset
+    with updated_file(path) as working:
+        f = working.file
         if filter_key is None:
             names, prefix = demo_names(f), ""
         else:
@@ -241,9 +251,16 @@ def split_dataset(path: str | Path, ratio: float, seed: int = 0, filter_key: str
 
 
 def clean_dataset(path: str | Path) -> list[str]:
-    """Remove what interrupted writes left in ``path`` (never a finished demo); returns what was removed."""
-    with open_dataset(path, "a") as f:
-        return remove_interrupted_writes(f)
+    """Remove what interrupted writes left (never a finished demo): working copies beside ``path``, and the
+    half-written demos older versions left in it; returns what was removed."""
+    with open_dataset(path) as f:
+        inside = interrupted_writes(f)
+    with write_lock(path) as lock:
+        removed = [p.name for p in safe_hdf5.remove_working_copies(path)]
+        if inside:
+            with updated_file(path, lock=lock) as working:
+                remove_interrupted_writes(working.file)
+    return inside + removed
 
 
 # ---------------------------------------------------------------------------------------------------------------- #
@@ -403,7 +420,6 @@ def render_observations(
     output = Path(output)
     if Path(path).resolve() == output.resolve():
         raise DatasetError("write the re-rendered dataset to a new file")
-    tmp = output.with_name(output.name + ".partial")
     overrides = dict(
         use_camera_obs=True,
         has_offscreen_renderer=True,
@@ -412,48 +428,45 @@ def render_observations(
         camera_widths=width,
         camera_depths=depth,
     )
-    try:
-        with open_dataset(path) as fin, h5py.File(tmp, "w") as fout:
-            names = _select_demos(fin, demos, None)
-            data_in = fin["data"]
-            data_out = fout.create_group("data")
-            for key, value in data_in.attrs.items():
-                data_out.attrs[key] = value
-            data_out.attrs["env_args"] = _with_cameras(_text(data_in.attrs["env_args"]), overrides)
-            envs = DemoEnvs(fin, **overrides)
-            try:
-                for name in names:
-                    g = data_in[name]
-                    env, _ = envs.start(g)
-                    for cam in cameras:
-                        _check_camera(env, cam)
-                    out = data_out.create_group(name)
-                    for key in ("actions", "executed_actions", "states", "rewards", "dones"):
-                        if key in g:
-                            fin.copy(g[key], out, name=key)
-                    for key, value in g.attrs.items():
-                        out.attrs[key] = value
-                    if "env_args" in g.attrs:
-                        out.attrs["env_args"] = _with_cameras(_text(g.attrs["env_args"]), overrides)
-                    executed = g["executed_actions" if "executed_actions" in g else "actions"][()]
-                    images = _render_images(env, g["states"][()], executed)
-                    for group in ("obs", "next_obs"):
-                        og = out.create_group(group)
-                        for key, d in g[group].items():
-                            if not _is_camera_key(key):
-                                fin.copy(d, og, name=key)
-                        for key, frames in images[group].items():
-                            og.create_dataset(key, data=frames, compression="gzip", compression_opts=4, shuffle=True)
-            finally:
-                envs.close()
-            if "mask" in fin:
-                fin.copy(fin["mask"], fout, name="mask")
-            if demos:
-                write_masks(fout)
-        os.replace(tmp, output)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    with open_dataset(path) as fin, updated_file(output, new=True) as working:
+        fout = working.file
+        names = _select_demos(fin, demos, None)
+        data_in = fin["data"]
+        data_out = fout.create_group("data")
+        for key, value in data_in.attrs.items():
+            data_out.attrs[key] = value
+        data_out.attrs["env_args"] = _with_cameras(_text(data_in.attrs["env_args"]), overrides)
+        envs = DemoEnvs(fin, **overrides)
+        try:
+            for name in names:
+                g = data_in[name]
+                env, _ = envs.start(g)
+                for cam in cameras:
+                    _check_camera(env, cam)
+                out = data_out.create_group(name)
+                for key in ("actions", "executed_actions", "states", "rewards", "dones"):
+                    if key in g:
+                        fin.copy(g[key], out, name=key)
+                for key, value in g.attrs.items():
+                    out.attrs[key] = value
+                if "env_args" in g.attrs:
+                    out.attrs["env_args"] = _with_cameras(_text(g.attrs["env_args"]), overrides)
+                executed = g["executed_actions" if "executed_actions" in g else "actions"][()]
+                images = _render_images(env, g["states"][()], executed)
+                for group in ("obs", "next_obs"):
+                    og = out.create_group(group)
+                    for key, d in g[group].items():
+                        if not _is_camera_key(key):
+                            fin.copy(d, og, name=key)
+                    for key, frames in images[group].items():
+                        og.create_dataset(key, data=frames, compression="gzip", compression_opts=4, shuffle=True)
+                working.check()  # a full disk stops the job at the demo it refused
+        finally:
+            envs.close()
+        if "mask" in fin:
+            fin.copy(fin["mask"], fout, name="mask")
+        if demos:
+            write_masks(fout)
     return len(names)
 
 
