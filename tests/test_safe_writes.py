@@ -329,3 +329,15 @@ def test_a_refused_demo_leaves_the_file_as_it_was(tmp_path):
         with pytest.raises(DatasetError, match="observations differ"):
             writer.write(other)
     assert path.read_bytes() == before and _leftovers(path) == []
+
+
+def test_writing_through_a_symbolic_link_changes_its_target_and_keeps_the_link(tmp_path):
+    target = tmp_path / "store" / "demos.hdf5"
+    target.parent.mkdir()
+    _recorded(target, demos=1)
+    link = tmp_path / "link.hdf5"
+    link.symlink_to(target)
+    with synthetic_writer(link) as writer:
+        writer.write(synthetic_episode(seed=4))
+    assert link.is_symlink() and _read_whole(target) == ["demo_0", "demo_1"]
+    assert _leftovers(target) == [] and _leftovers(link) == []

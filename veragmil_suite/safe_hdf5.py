@@ -50,15 +50,20 @@ def _stem(path: Path) -> str:
     return name.encode()[: _MAX_STEM - 13].decode(errors="ignore") + "-" + digest
 
 
+def _on_disk(path: str | Path) -> Path:
+    """The file a path names, through symbolic links: a change replaces it, not the link."""
+    return Path(os.path.realpath(path))
+
+
 def lock_path(path: str | Path) -> Path:
-    path = Path(path)
+    path = _on_disk(path)
     return path.with_name(f".{_stem(path)}{LOCK_SUFFIX}")
 
 
 def working_copies(path: str | Path) -> list[Path]:
     """Working copies of ``path`` left beside it: each the state of a write that was cut short (or is under way,
     while the lock is held)."""
-    path = Path(path)
+    path = _on_disk(path)
     pattern = re.compile(re.escape(f".{_stem(path)}.") + r"[0-9a-f]{8}" + re.escape(WORKING_SUFFIX))
     try:
         return sorted(p for p in path.parent.iterdir() if pattern.fullmatch(p.name))
@@ -139,8 +144,8 @@ class FileLock:
         return False
 
     def __del__(self):
-        if self._fd is not None:
-            os.close(self._fd)
+        with contextlib.suppress(Exception):  # at interpreter exit what it uses may be gone already
+            self.release()
 
 
 class _GuardedFile:
@@ -250,7 +255,8 @@ def replaced(path: str | Path, new: bool = False, lock: FileLock | None = None) 
         lock.acquire()
     elif not lock.held:
         raise RuntimeError(f"the write lock of {path} is not held")
-    copy = path.with_name(f".{_stem(path)}.{secrets.token_hex(4)}{WORKING_SUFFIX}")
+    target = _on_disk(path)
+    copy = target.with_name(f".{_stem(target)}.{secrets.token_hex(4)}{WORKING_SUFFIX}")
     try:
         try:
             fd = os.open(copy, os.O_RDWR | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o644)
@@ -258,10 +264,10 @@ def replaced(path: str | Path, new: bool = False, lock: FileLock | None = None) 
             raise _failed(path, e) from None
         try:
             try:
-                if not new and path.exists():
-                    with open(path, "rb") as source:
+                if not new and target.exists():
+                    with open(target, "rb") as source:
                         _copy(source.fileno(), fd)
-                    shutil.copymode(path, copy)
+                    shutil.copymode(target, copy)
                     mode = "r+"
                 else:
                     mode = "w"
@@ -279,8 +285,8 @@ def replaced(path: str | Path, new: bool = False, lock: FileLock | None = None) 
         finally:
             os.close(fd)
         try:
-            os.replace(copy, path)
-            _fsync_folder(path.parent)
+            os.replace(copy, target)
+            _fsync_folder(target.parent)
         except OSError as e:
             raise _failed(path, e) from None
     finally:

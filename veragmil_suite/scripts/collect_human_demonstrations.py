@@ -526,7 +526,11 @@ def main(argv: list[str] | None = None) -> int:
         env = None
         attempts_iter = parallel_attempts(args, env_kwargs, piles)
     else:
-        operator = make_operator(args, env)
+        try:
+            operator = make_operator(args, env)
+        except SystemExit:
+            writer.close()
+            raise
         recorder = recording.EpisodeRecorder(env)
         attempts_iter = local_attempts(env, recorder, operator, args, render, realtime=source == "human")
     kept, attempts, results = 0, 0, []
