@@ -341,3 +341,34 @@ def test_writing_through_a_symbolic_link_changes_its_target_and_keeps_the_link(t
         writer.write(synthetic_episode(seed=4))
     assert link.is_symlink() and _read_whole(target) == ["demo_0", "demo_1"]
     assert _leftovers(target) == [] and _leftovers(link) == []
+
+
+def _scribble_over(path: Path, *objects: str) -> None:
+    """Overwrite the object headers of ``objects`` with garbage: what a write cut short in place left (the
+    writers before safe_hdf5, or another program)."""
+    with h5py.File(path, "r") as f:
+        addresses = [h5py.h5o.get_info(f[name].id).addr for name in objects]
+    data = bytearray(path.read_bytes())
+    for address in addresses:
+        data[address : address + 24] = b"\xff" * 24
+    path.write_bytes(bytes(data))
+
+
+def test_a_file_damaged_in_place_is_named_and_clean_keeps_the_demos_that_read(tmp_path, capsys):
+    path = tmp_path / "demos.hdf5"
+    _recorded(path, demos=3)
+    _scribble_over(path, "data/demo_1/actions", "mask/valid")
+    with pytest.raises(DatasetError, match="demo_1 is incomplete.*--clean keeps the demos that still read"):
+        open_dataset(path)
+    capsys.readouterr()
+    assert dataset_tools.info_main([str(path)]) == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+    assert dataset_tools.info_main([str(path), "--clean"]) == 0
+    said = capsys.readouterr().out
+    assert "data/demo_1 (is incomplete: no 'actions' dataset)" in said and "mask/valid (damaged)" in said
+    assert _read_whole(path) == ["demo_0", "demo_2"] and _leftovers(path) == []
+    with h5py.File(path, "r") as f:
+        members = sorted(m.decode() for key in ("train", "valid") for m in f["mask"][key][()])
+    assert members == ["demo_0", "demo_2"]
+    with synthetic_writer(path) as writer:  # appended to again
+        assert writer.write(synthetic_episode(seed=5)) == "demo_3"

@@ -17,8 +17,10 @@ import numpy as np
 from veragmil_suite import robomimic_obs, safe_hdf5
 from veragmil_suite.recording import (
     COMPATIBLE_KWARGS,
+    DamagedDataset,
     DatasetError,
     action_limit,
+    check_demo,
     demo_names,
     demo_problems,
     interrupted_writes,
@@ -251,16 +253,89 @@ def split_dataset(path: str | Path, ratio: float, seed: int = 0, filter_key: str
 
 
 def clean_dataset(path: str | Path) -> list[str]:
-    """Remove what interrupted writes left (never a finished demo): working copies beside ``path``, and the
-    half-written demos older versions left in it; returns what was removed."""
-    with open_dataset(path) as f:
-        inside = interrupted_writes(f)
+    """
+    Remove what interrupted writes left (never a finished demo that reads): working copies beside ``path``, the
+    half-written demos older versions left in it, and, in a file damaged by a write cut short in place (older
+    versions, other programs), whatever no longer reads: the file is then rebuilt from its complete demos
+    (salvage_dataset). Returns what was removed.
+
+    Raises:
+        DatasetError: [not a dataset, in use by another process, or nothing of it can be read]
+    """
+    path = Path(path)
+    if not path.is_file():
+        open_dataset(path)  # the clear error for a missing file or a folder
     with write_lock(path) as lock:
         removed = [p.name for p in safe_hdf5.remove_working_copies(path)]
-        if inside:
-            with updated_file(path, lock=lock) as working:
-                remove_interrupted_writes(working.file)
+        try:
+            with open_dataset(path) as f:
+                inside = interrupted_writes(f)
+            if inside:
+                with updated_file(path, lock=lock) as working:
+                    remove_interrupted_writes(working.file)
+        except (DamagedDataset, KeyError, OSError, RuntimeError):
+            inside = salvage_dataset(path, lock)
     return inside + removed
+
+
+def salvage_dataset(path: str | Path, lock: safe_hdf5.FileLock) -> list[str]:
+    """
+    Rebuild ``path`` (its write lock ``lock`` held) from what still reads: the file's attributes, every demo that
+    reads whole and passes the schema check, the filter keys that read (less the demos dropped), and the standard
+    masks redone. Returns what was dropped.
+
+    Raises:
+        DatasetError: [the file's data group or its env_args cannot be read: nothing to salvage]
+    """
+    dropped = []
+    try:
+        fin = h5py.File(path, "r")
+    except OSError as error:
+        raise DatasetError(f"{path} cannot be read as HDF5 at all: nothing to salvage ({error})") from None
+    with fin, updated_file(path, new=True, lock=lock) as working:
+        fout = working.file
+        try:
+            data_in = fin["data"]
+            names = demo_names(fin)
+            json.loads(data_in.attrs["env_args"])
+        except (KeyError, OSError, RuntimeError, TypeError, ValueError) as error:
+            raise DatasetError(
+                f"{path}: its data group or env_args cannot be read: nothing to salvage ({error})"
+            ) from None
+        data_out = fout.create_group("data")
+        for key in data_in.attrs:
+            try:
+                data_out.attrs[key] = data_in.attrs[key]
+            except (KeyError, OSError, RuntimeError):
+                dropped.append(f"data attribute {key} (damaged)")
+        kept = []
+        for name in names:
+            try:
+                g = data_in[name]
+                check_demo(g, name)
+                g.visititems(lambda _, d: d[()] if isinstance(d, h5py.Dataset) else None)
+                fin.copy(g, data_out, name=name)
+                kept.append(name)
+            except (DamagedDataset, KeyError, OSError, RuntimeError) as error:
+                dropped.append(f"data/{name} ({str(error).removeprefix(name).strip(' :')})")
+        dropped += [f"data/{n}" for n in data_in if n not in names] + [k for k in fin if k not in ("data", "mask")]
+        masks = {}
+        try:
+            keys = list(fin["mask"]) if "mask" in fin else []
+        except (KeyError, OSError, RuntimeError):
+            keys = []
+            dropped.append("mask (damaged)")
+        for key in keys:
+            try:
+                masks[key] = [m for m in fin["mask"][key][()] if m.decode() in kept]
+            except (KeyError, OSError, RuntimeError):
+                dropped.append(f"mask/{key} (damaged)")
+        ratio = len(masks.get("valid", [])) / max(1, len(masks.get("valid", [])) + len(masks.get("train", [])))
+        refresh_summary(fout, ratio if masks.get("train") else 0.1)
+        for key, members in masks.items():
+            if key not in fout["mask"]:
+                fout["mask"].create_dataset(key, data=np.array(members, dtype="S"))
+    return dropped
 
 
 # ---------------------------------------------------------------------------------------------------------------- #

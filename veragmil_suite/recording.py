@@ -74,6 +74,14 @@ class DatasetError(ValueError):
     """A file that is not a ScoopGranular dataset, is corrupt, or does not match what is written to it."""
 
 
+class DamagedDataset(DatasetError):
+    """A ScoopGranular dataset with a part that does not read or is not a valid demo: veragmil-dataset-info --clean
+    rebuilds it from the demos that do (veragmil_suite.datasets.salvage_dataset)."""
+
+
+SALVAGE_HINT = "veragmil-dataset-info --clean keeps the demos that still read"
+
+
 # ---------------------------------------------------------------------------------------------------------------- #
 # Environment metadata                                                                                             #
 # ---------------------------------------------------------------------------------------------------------------- #
@@ -298,30 +306,39 @@ def check_schema(f: h5py.File, path: str | Path = "") -> dict:
                 "not a veragmil_suite dataset"
             )
         for name in demo_names(f):
-            _check_demo(data[name], f"{where}:data/{name}")
+            check_demo(data[name], f"{where}:data/{name}")
+        for key in f.get("mask", {}):
+            f["mask"][key][()]  # robomimic reads its filter keys
+    except DamagedDataset as e:
+        raise DamagedDataset(f"{e}; {SALVAGE_HINT}") from None
     except (OSError, KeyError, RuntimeError) as e:
-        raise DatasetError(f"{where} is damaged: {_first_line(e)}") from None
+        raise DamagedDataset(f"{where} is damaged ({_first_line(e)}); {SALVAGE_HINT}") from None
     return meta
 
 
-def _check_demo(g, where: str) -> None:
+def check_demo(g: h5py.Group, where: str) -> None:
+    """Refuse a stored demo that is incomplete, empty, has non-finite actions or arrays of other lengths.
+
+    Raises:
+        DamagedDataset: [naming what is wrong]
+    """
     for key in ("actions", "states", "rewards", "dones"):
         if not isinstance(g.get(key), h5py.Dataset):
-            raise DatasetError(f"{where} is incomplete: no {key!r} dataset")
+            raise DamagedDataset(f"{where} is incomplete: no {key!r} dataset")
     n = g["actions"].shape[0]
     if "num_samples" not in g.attrs or int(g.attrs["num_samples"]) != n or "model_file" not in g.attrs:
-        raise DatasetError(f"{where} is incomplete: num_samples or model_file missing or wrong")
+        raise DamagedDataset(f"{where} is incomplete: num_samples or model_file missing or wrong")
     if n == 0:
-        raise DatasetError(f"{where} has no steps: a demo holds at least one transition")
+        raise DamagedDataset(f"{where} has no steps: a demo holds at least one transition")
     if not np.isfinite(g["actions"][()]).all():
-        raise DatasetError(f"{where} has non-finite actions")
+        raise DamagedDataset(f"{where} has non-finite actions")
     for key in ("states", "rewards", "dones"):
         if g[key].shape[0] != n:
-            raise DatasetError(f"{where}: {key} has {g[key].shape[0]} steps, actions {n}")
+            raise DamagedDataset(f"{where}: {key} has {g[key].shape[0]} steps, actions {n}")
     for group in ("obs", "next_obs"):
         for k, d in g.get(group, {}).items():
             if d.shape[0] != n:
-                raise DatasetError(f"{where}: {group}/{k} has {d.shape[0]} steps, actions {n}")
+                raise DamagedDataset(f"{where}: {group}/{k} has {d.shape[0]} steps, actions {n}")
 
 
 def provenance(device: str, operator: str, food: str, robot: str, **extra) -> dict:
@@ -621,17 +638,23 @@ def demo_problems(g: h5py.Group, limit: float) -> list[str]:
 
 def interrupted_writes(f: h5py.File) -> list[str]:
     """Demos whose writing was interrupted (the writer killed): never part of the dataset, safe to remove."""
-    pending = [f"{PENDING_GROUP}/{name}" for name in f[PENDING_GROUP]] if PENDING_GROUP in f else []
+    pending = []
+    if PENDING_GROUP in f:
+        try:
+            pending = [f"{PENDING_GROUP}/{name}" for name in f[PENDING_GROUP]] or [PENDING_GROUP]
+        except (KeyError, OSError, RuntimeError):  # a kill left the group itself unreadable: it goes whole
+            pending = [PENDING_GROUP]
     return pending + [f"data/{name}" for name in f["data"] if name.startswith(_PENDING_PREFIX)]
 
 
 def remove_interrupted_writes(f: h5py.File) -> list[str]:
     """Delete what interrupted writes left (``interrupted_writes``); returns what was removed."""
     removed = interrupted_writes(f)
-    for path in removed:
-        del f[path]
     if PENDING_GROUP in f:
         del f[PENDING_GROUP]
+    for path in removed:
+        if not path.startswith(PENDING_GROUP):
+            del f[path]
     return removed
 
 
