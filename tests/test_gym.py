@@ -167,3 +167,25 @@ def test_a_gymnasium_episode_is_recorded_in_our_schema(tmp_path):
         # what the Gymnasium agent saw is what was recorded, before and after each action
         np.testing.assert_array_equal(demo["obs/object"][()], np.array(observations[:-1])[:, :OBJECT_STATE_DIM])
         np.testing.assert_array_equal(demo["next_obs/object"][()], np.array(observations[1:])[:, :OBJECT_STATE_DIM])
+
+
+def test_an_action_outside_the_action_space_is_stored_as_the_robot_applied_it(tmp_path):
+    """The controller clips its input to the action space; the recorder stores the clipped action it executed,
+    so the file holds only valid actions and they replay the recorded states exactly."""
+    from veragmil_suite.datasets import replay_demos
+
+    env = make(record=True)
+    inner = env.unwrapped
+    env.reset(seed=1)
+    wild = np.array([5.0, -3.0, 0.2, 0.0, 1.5, 0.0])
+    for action in (wild, np.zeros(6), -wild):
+        env.step(action)
+    episode = inner.recorder.episode()
+    np.testing.assert_array_equal(episode.actions[0], np.clip(wild, -1, 1))
+    np.testing.assert_array_equal(episode.actions[2], np.clip(-wild, -1, 1))
+    path = tmp_path / "gym.hdf5"
+    with DemoWriter(path, env_meta(inner.env_kwargs), provenance("gymnasium", "wild", "pasta", "XArm7")) as writer:
+        writer.write(episode)
+    env.close()
+    (replayed,) = replay_demos(path, None, use_actions=True)
+    assert replayed["max_state_error"] == 0.0

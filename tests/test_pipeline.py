@@ -284,13 +284,43 @@ def test_a_killed_study_resumes_and_skips_every_finished_piece(tmp_path):
     assert not any((out / "eval" / name).exists() for name in ("seeds.csv", "seeds.md", "seeds"))
 
 
-def test_a_study_refuses_to_mix_settings_in_one_folder(tmp_path):
+def _tree(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_a_study_refuses_to_mix_settings_in_one_folder_before_it_writes_anything(tmp_path):
     out = tmp_path / "study"
     (out / "runs").mkdir(parents=True)
     args = [*CHEAP_STUDY, "--output-dir", out, "--demos-per-food", "1", "--episodes", "1"]
     (out / "runs" / "expert_bc_1demos_10steps.json").write_text(json.dumps({"another": "config"}))
+    before = _tree(out)
     result = _run("veragmil-study", *args)
     assert result.returncode == 1 and "holds another config for expert_bc_1demos_10steps" in result.stderr
+    assert _tree(out) == before and not (out / "data").exists()  # nothing recorded, merged or trained first
+
+
+def test_a_study_of_other_foods_leaves_another_studys_merged_dataset_alone(tmp_path):
+    """Its training runs would otherwise be taken for runs on the foods asked (and the merged file was rewritten
+    before the study refused)."""
+    from helpers.recording import synthetic_episode, synthetic_writer
+
+    from veragmil_suite.pipeline import merge_profile_dataset
+
+    out = tmp_path / "study"
+    foods = [out / "data" / "expert" / f"{food}.hdf5" for food in ("pasta", "peas")]
+    for seed, path in enumerate(foods):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with synthetic_writer(path) as writer:
+            for k in range(4):
+                writer.write(synthetic_episode(seed=10 * seed + k))
+    merge_profile_dataset(out / "data" / "expert.hdf5", foods, [4])
+    for path in foods:  # the merged dataset alone: the foods' files are checked on their own
+        path.unlink()
+    before = _tree(out)
+    result = _run("veragmil-study", *CHEAP_STUDY, "--output-dir", out, "--demos-per-food", "1", "--episodes", "1")
+    assert result.returncode == 1, result.stdout[-2000:] + result.stderr[-2000:]
+    assert "expert.hdf5 merges pasta.hdf5, peas.hdf5 (asked: pasta.hdf5)" in result.stderr
+    assert _tree(out) == before
 
 
 def test_a_shorter_recording_is_continued_to_the_demos_one_run_records(tmp_path):

@@ -1,5 +1,6 @@
 """The demonstration file: robomimic's schema key by key, exact replay, append, crash safety, clear errors."""
 
+import dataclasses
 import json
 import os
 import signal
@@ -12,9 +13,10 @@ import h5py
 import numpy as np
 import pytest
 from helpers.env import pinned_mujoco_version
-from helpers.recording import CAMERA_SIZE, make_env, record_file, tiny_env_kwargs
+from helpers.recording import CAMERA_SIZE, make_env, record_file, synthetic_episode, synthetic_writer, tiny_env_kwargs
 
 from veragmil_suite import robomimic_obs
+from veragmil_suite.evaluation import parse_spec
 from veragmil_suite.recording import (
     DatasetError,
     DemoWriter,
@@ -272,8 +274,14 @@ def test_a_non_finite_action_is_never_stored(tmp_path):
     _, _, done, info = recorder.step(np.array([0.1, np.nan, 0, 0, 0, 0]))
     assert done and "non-finite action" in info["physics_error"]
     assert recorder.num_steps == 1  # the NaN step is not in the episode
-    episode = recorder.episode()
+    episode = recorder.episode(attrs=dict(end_reason="physics"))
     assert np.isfinite(episode.actions).all() and episode.actions.shape == (1, 6)
+    assert "non-finite action" in episode.metrics["physics_error"]  # the episode says why it ended
+    path = tmp_path / "nan.hdf5"
+    with DemoWriter(path, env_meta(tiny_env_kwargs(cameras=())), provenance("scripted", "x", "pasta", "XArm7")) as w:
+        w.write(episode)
+    with open_dataset(path) as f:
+        assert "non-finite action" in f["data/demo_0"].attrs["physics_error"]
     with pytest.raises(ValueError, match="non-finite action label"):  # a label is checked before anything runs
         recorder.reset(seed=0)
         recorder.step(np.zeros(6), label=np.array([np.inf, 0, 0, 0, 0, 0]))
@@ -281,77 +289,93 @@ def test_a_non_finite_action_is_never_stored(tmp_path):
     env.close()
 
 
-WRITER_CHILD = textwrap.dedent(
-    """
-    import dataclasses, sys, time
-    sys.path.insert(0, {tests!r})
-    import h5py
-    import numpy as np
-    from helpers.recording import record_file, tiny_env_kwargs
-    from veragmil_suite.recording import DemoWriter, env_meta, provenance
-
-    kwargs = tiny_env_kwargs()
-    (episode,) = record_file({path!r}, episodes=1, steps=5, env_kwargs=kwargs)
-    long = lambda a: np.repeat(a, 400, axis=0)  # a 2000-step demo: a write long enough to be killed inside
-    episode = dataclasses.replace(
-        episode,
-        actions=long(episode.actions), states=long(episode.states), rewards=long(episode.rewards),
-        dones=long(episode.dones), obs={{k: long(v) for k, v in episode.obs.items()}},
-        next_obs={{k: long(v) for k, v in episode.next_obs.items()}},
-    )
-    writer = DemoWriter({path!r}, env_meta(kwargs), provenance("scripted", "x", kwargs["food"], "XArm7"))
-    create_dataset = h5py.Group.create_dataset
-
-    def announced(group, name, *args, **kwargs):  # a demo's first dataset: its write has begun
-        if name == "actions" and group.name.startswith("/incomplete"):
-            print("IN-WRITE", flush=True)
-        return create_dataset(group, name, *args, **kwargs)
-
-    flush = h5py.File.flush
-
-    def held(f):  # the demo's data is on disk, not yet moved into data/: the instant a kill leaves most behind
-        flush(f)
-        if "incomplete" in f:
-            print("FLUSHED", flush=True)
-            time.sleep(0.5)
-
-    h5py.Group.create_dataset = announced
-    h5py.File.flush = held
-    writer.write(episode)
-    while True:
-        writer.write(episode)
-    """
-)
+def _invalid_episodes():
+    """Every way an episode can fail to be a demo, generated from a valid one: no steps, each array non-finite or
+    of another length, actions (executed or stored) outside the action space, a physics end without its error."""
+    good = synthetic_episode(steps=6)
+    yield "no steps", synthetic_episode(steps=0)
+    for key in ("actions", "states", "rewards"):
+        for bad in (np.nan, np.inf):
+            value = getattr(good, key).copy()
+            value[2] = bad
+            yield f"{key} {bad}", dataclasses.replace(good, **{key: value})
+    for key in ("states", "rewards", "dones"):
+        yield f"{key} short", dataclasses.replace(good, **{key: getattr(good, key)[:-1]})
+    yield "obs short", dataclasses.replace(good, obs={k: v[:-1] for k, v in good.obs.items()})
+    for outside in (5.0, -1.5):
+        yield f"action {outside}", dataclasses.replace(good, actions=np.full((6, 6), outside))
+        yield f"executed {outside}", dataclasses.replace(good, executed_actions=np.full((6, 6), outside))
+    bounds = (np.full(6, -0.5), np.full(6, 0.5))  # the env's own action space, when the recorder gives it
+    yield "outside its env's bounds", dataclasses.replace(good, actions=np.full((6, 6), 0.8), action_bounds=bounds)
+    yield "physics without error", dataclasses.replace(good, attrs=dict(end_reason="physics"))
 
 
-@pytest.mark.parametrize("moment", ["IN-WRITE", "FLUSHED"])
-def test_killed_while_writing_every_tool_sees_only_complete_demos(tmp_path, moment, capsys):
-    path = tmp_path / "killed.hdf5"
-    code = WRITER_CHILD.format(tests=os.path.dirname(__file__), path=str(path))
-    child = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-    try:
-        seen = 0
-        for line in child.stdout:
-            seen += moment in line
-            if seen == 2:  # inside the second long write
-                break
-        os.kill(child.pid, signal.SIGKILL)
-        child.wait(timeout=30)
-    finally:
-        if child.poll() is None:
-            child.kill()
-    with open_dataset(path) as f:  # every demo under data/ is complete (open_dataset checks each one)
-        names = list(f["data"].keys())
-        assert names and all(n.startswith("demo_") and n[5:].isdigit() for n in names)  # as robomimic parses them
-        lengths = [f["data"][n]["actions"].shape[0] for n in names]
-        assert lengths[:2] == [5, 2000] and set(lengths[1:]) == {2000}
-    capsys.readouterr()
-    assert info_main([str(path)]) == 0
-    shown = capsys.readouterr().out
-    with h5py.File(path, "r") as f:
-        left = "incomplete" in f
-    assert ("INTERRUPTED WRITES" in shown) == left
-    assert left or moment == "IN-WRITE"  # killed after the flush, the half-written demo is in the file
-    assert info_main([str(path), "--clean"]) == 0
-    with h5py.File(path, "r") as f:
-        assert "incomplete" not in f and sorted(f["data"].keys()) == sorted(names)
+@pytest.mark.parametrize("what, episode", list(_invalid_episodes()), ids=lambda x: x if isinstance(x, str) else "")
+def test_the_writer_refuses_an_episode_that_is_not_a_valid_demo(tmp_path, what, episode):
+    path = tmp_path / "demos.hdf5"
+    with synthetic_writer(path) as writer:
+        writer.write(synthetic_episode(steps=6))
+        before = path.read_bytes()
+        with pytest.raises(DatasetError):
+            writer.write(episode)
+    assert path.read_bytes() == before
+
+
+def _edited(path, tmp_path, name, edit):
+    out = tmp_path / name
+    out.write_bytes(path.read_bytes())
+    with h5py.File(out, "a") as f:
+        edit(f["data/demo_1"])
+    return out
+
+
+def _emptied(g):
+    for key in ("actions", "states", "rewards", "dones"):
+        data = g[key][()]
+        del g[key]
+        g.create_dataset(key, data=data[:0])
+    for group in ("obs", "next_obs"):
+        for key in list(g[group]):
+            data = g[group][key][()]
+            del g[group][key]
+            g[group].create_dataset(key, data=data[:0])
+    g.attrs["num_samples"] = 0
+    g.attrs["success"] = True
+
+
+def _set_actions(value):
+    def edit(g):
+        g["actions"][2] = value
+
+    return edit
+
+
+def test_the_schema_check_refuses_an_empty_or_non_finite_demo_and_the_info_flags_the_rest(tmp_path, capsys):
+    path = tmp_path / "demos.hdf5"
+    with synthetic_writer(path) as writer:
+        for seed in range(3):
+            writer.write(synthetic_episode(steps=6, seed=seed))
+    refused = {
+        "no steps": _edited(path, tmp_path, "empty.hdf5", _emptied),
+        "non-finite actions": _edited(path, tmp_path, "nan.hdf5", _set_actions(np.nan)),
+    }
+    for message, bad in refused.items():
+        with pytest.raises(DatasetError, match=f"demo_1 has {message}"):
+            open_dataset(bad)
+        with pytest.raises(ValueError, match=f"demo_1 has {message}"):  # nor scored as an agent's episodes
+            parse_spec(f"dataset:{bad}")
+        capsys.readouterr()
+        assert info_main([str(bad)]) == 2
+        err = capsys.readouterr().err
+        assert f"demo_1 has {message}" in err and len(err.strip().splitlines()) == 1
+    flagged = {
+        "actions outside the action space": _edited(path, tmp_path, "big.hdf5", _set_actions(5.0)),
+        "physics_error is empty": _edited(
+            path, tmp_path, "physics.hdf5", lambda g: g.attrs.update(end_reason="physics", physics_error="")
+        ),
+    }
+    for message, bad in flagged.items():
+        capsys.readouterr()
+        assert info_main([str(bad)]) == 0
+        out = capsys.readouterr().out
+        assert "FLAGGED demo_1:" in out and message in out, message

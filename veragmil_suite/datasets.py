@@ -8,25 +8,30 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 from collections import Counter
 from pathlib import Path
 
 import h5py
 import numpy as np
 
-from veragmil_suite import robomimic_obs
+from veragmil_suite import robomimic_obs, safe_hdf5
 from veragmil_suite.foods import with_recorded_physics
 from veragmil_suite.recording import (
     COMPATIBLE_KWARGS,
+    DamagedDataset,
     DatasetError,
+    action_limit,
+    check_demo,
     demo_names,
+    demo_problems,
     env_kwargs_variants,
     interrupted_writes,
     open_dataset,
     refresh_summary,
     remove_interrupted_writes,
     split_demos,
+    updated_file,
+    write_lock,
     write_masks,
 )
 
@@ -36,12 +41,17 @@ from veragmil_suite.recording import (
 
 
 def dataset_summary(path: str | Path) -> dict:
-    """What a dataset holds: demos, lengths, foods, devices, success, spillage, obs keys, filter keys, provenance."""
+    """What a dataset holds: demos, lengths, foods, devices, success, spillage, obs keys, filter keys, provenance;
+    what interrupted writes left (working copies beside it, or older versions' half-written demos in it), whether
+    another process is writing it now, and the demos that read but are flagged (``demo_problems``)."""
+    being_written = safe_hdf5.FileLock(path).in_use_elsewhere()
     with open_dataset(path) as f:
         data = f["data"]
         meta = json.loads(data.attrs["env_args"])
         kwargs = meta.get("env_kwargs", {})
         names = demo_names(f)
+        limit = action_limit(kwargs)
+        problems = {n: found for n in names if (found := demo_problems(data[n], limit))}
         control_freq = float(kwargs.get("control_freq", 20))
         lengths = np.array([int(data[n].attrs["num_samples"]) for n in names], dtype=int)
         demos = []
@@ -68,6 +78,8 @@ def dataset_summary(path: str | Path) -> dict:
         masks = {k: len(f["mask"][k]) for k in f["mask"]} if "mask" in f else {}
         duplicates = _duplicate_demos(data, names)
         interrupted = interrupted_writes(f)
+        if not being_written:
+            interrupted += [p.name for p in safe_hdf5.working_copies(path)]
         attempts = json.loads(data.attrs.get("attempts", "[]"))
         variants = env_kwargs_variants(f)
         provenance = {k: _plain(data.attrs[k]) for k in data.attrs if k not in _SUMMARY_ATTRS}
@@ -117,6 +129,8 @@ def dataset_summary(path: str | Path) -> dict:
         filter_keys=masks,
         duplicates=duplicates,
         interrupted_writes=interrupted,
+        being_written=being_written,
+        problems=problems,
         provenance=provenance,
         demo_list=demos,
     )
@@ -168,57 +182,53 @@ def merge_datasets(inputs: list[str | Path], output: str | Path, valid_ratio: fl
     if any(Path(i).resolve() == output.resolve() for i in inputs):
         raise DatasetError(f"{output} is also an input: merge into a new file")
     first_meta, first_obs, attempts, sources = None, None, [], []
-    tmp = output.with_name(output.name + ".partial")
-    try:
-        with h5py.File(tmp, "w") as fout:
-            data_out = fout.create_group("data")
-            index = 0
-            for path in inputs:
-                with open_dataset(path) as fin:
-                    data_in = fin["data"]
-                    meta = json.loads(data_in.attrs["env_args"])
-                    names = demo_names(fin)
-                    obs = {k: d.shape[1:] for k, d in data_in[names[0]]["obs"].items()} if names else None
-                    if first_meta is None:
-                        first_meta = meta
-                        for key, value in data_in.attrs.items():
-                            data_out.attrs[key] = value
-                    else:
-                        differ = [
-                            k
-                            for k in COMPATIBLE_KWARGS
-                            if json.dumps(meta["env_kwargs"].get(k), sort_keys=True)
-                            != json.dumps(first_meta["env_kwargs"].get(k), sort_keys=True)
-                        ]
-                        if differ:
-                            raise DatasetError(f"{path} was recorded with other {', '.join(differ)} than {inputs[0]}")
-                    if obs is not None:
-                        if first_obs is None:
-                            first_obs = obs
-                        elif obs != first_obs:
-                            raise DatasetError(f"{path} has other observation keys or shapes than the files before it")
-                    for name in names:
-                        new = f"demo_{index}"
-                        fin.copy(data_in[name], data_out, name=new)
-                        g = data_out[new]
-                        g.attrs["merged_from"] = f"{path}:{name}"
-                        if "env_args" not in g.attrs:
-                            g.attrs["env_args"] = json.dumps(meta)
-                        if "food" not in g.attrs and "food" in meta["env_kwargs"]:
-                            g.attrs["food"] = meta["env_kwargs"]["food"]
-                        index += 1
-                    for entry in json.loads(data_in.attrs.get("attempts", "[]")):
-                        attempts.append(dict(entry, source=str(path)))
-                    sources.append(str(path))
-            if first_meta is None:
-                raise DatasetError("no input files")
-            data_out.attrs["attempts"] = json.dumps(attempts)
-            data_out.attrs["merged_from"] = json.dumps(sources)
-            refresh_summary(fout, valid_ratio)
-        os.replace(tmp, output)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    with updated_file(output, new=True) as working:
+        fout = working.file
+        data_out = fout.create_group("data")
+        index = 0
+        for path in inputs:
+            with open_dataset(path) as fin:
+                data_in = fin["data"]
+                meta = json.loads(data_in.attrs["env_args"])
+                names = demo_names(fin)
+                obs = {k: d.shape[1:] for k, d in data_in[names[0]]["obs"].items()} if names else None
+                if first_meta is None:
+                    first_meta = meta
+                    for key, value in data_in.attrs.items():
+                        data_out.attrs[key] = value
+                else:
+                    differ = [
+                        k
+                        for k in COMPATIBLE_KWARGS
+                        if json.dumps(meta["env_kwargs"].get(k), sort_keys=True)
+                        != json.dumps(first_meta["env_kwargs"].get(k), sort_keys=True)
+                    ]
+                    if differ:
+                        raise DatasetError(f"{path} was recorded with other {', '.join(differ)} than {inputs[0]}")
+                if obs is not None:
+                    if first_obs is None:
+                        first_obs = obs
+                    elif obs != first_obs:
+                        raise DatasetError(f"{path} has other observation keys or shapes than the files before it")
+                for name in names:
+                    new = f"demo_{index}"
+                    fin.copy(data_in[name], data_out, name=new)
+                    g = data_out[new]
+                    g.attrs["merged_from"] = f"{path}:{name}"
+                    if "env_args" not in g.attrs:
+                        g.attrs["env_args"] = json.dumps(meta)
+                    if "food" not in g.attrs and "food" in meta["env_kwargs"]:
+                        g.attrs["food"] = meta["env_kwargs"]["food"]
+                    index += 1
+                for entry in json.loads(data_in.attrs.get("attempts", "[]")):
+                    attempts.append(dict(entry, source=str(path)))
+                sources.append(str(path))
+            working.check()
+        if first_meta is None:
+            raise DatasetError("no input files")
+        data_out.attrs["attempts"] = json.dumps(attempts)
+        data_out.attrs["merged_from"] = json.dumps(sources)
+        refresh_summary(fout, valid_ratio)
     return index
 
 
@@ -226,7 +236,9 @@ def split_dataset(path: str | Path, ratio: float, seed: int = 0, filter_key: str
     """Rewrite the train/valid masks of ``path`` (``<filter_key>_train/_valid`` within a filter key)."""
     if not 0 <= ratio < 1:
         raise DatasetError(f"the validation ratio must lie in [0, 1), got {ratio}")
-    with open_dataset(path, "a") as f:
+    open_dataset(path).close()  # a clear error for a file that is not a dataset
+    with updated_file(path) as working:
+        f = working.file
         if filter_key is None:
             names, prefix = demo_names(f), ""
         else:
@@ -245,9 +257,89 @@ def split_dataset(path: str | Path, ratio: float, seed: int = 0, filter_key: str
 
 
 def clean_dataset(path: str | Path) -> list[str]:
-    """Remove what interrupted writes left in ``path`` (never a finished demo); returns what was removed."""
-    with open_dataset(path, "a") as f:
-        return remove_interrupted_writes(f)
+    """
+    Remove what interrupted writes left (never a finished demo that reads): working copies beside ``path``, the
+    half-written demos older versions left in it, and, in a file damaged by a write cut short in place (older
+    versions, other programs), whatever no longer reads: the file is then rebuilt from its complete demos
+    (salvage_dataset). Returns what was removed.
+
+    Raises:
+        DatasetError: [not a dataset, in use by another process, or nothing of it can be read]
+    """
+    path = Path(path)
+    if not path.is_file():
+        open_dataset(path)  # the clear error for a missing file or a folder
+    with write_lock(path) as lock:
+        removed = [p.name for p in safe_hdf5.remove_working_copies(path)]
+        try:
+            with open_dataset(path) as f:
+                inside = interrupted_writes(f)
+            if inside:
+                with updated_file(path, lock=lock) as working:
+                    remove_interrupted_writes(working.file)
+        except (DamagedDataset, KeyError, OSError, RuntimeError):
+            inside = salvage_dataset(path, lock)
+    return inside + removed
+
+
+def salvage_dataset(path: str | Path, lock: safe_hdf5.FileLock) -> list[str]:
+    """
+    Rebuild ``path`` (its write lock ``lock`` held) from what still reads: the file's attributes, every demo that
+    reads whole and passes the schema check, the filter keys that read (less the demos dropped), and the standard
+    masks redone. Returns what was dropped.
+
+    Raises:
+        DatasetError: [the file's data group or its env_args cannot be read: nothing to salvage]
+    """
+    dropped = []
+    try:
+        fin = h5py.File(path, "r")
+    except OSError as error:
+        raise DatasetError(f"{path} cannot be read as HDF5 at all: nothing to salvage ({error})") from None
+    with fin, updated_file(path, new=True, lock=lock) as working:
+        fout = working.file
+        try:
+            data_in = fin["data"]
+            names = demo_names(fin)
+            json.loads(data_in.attrs["env_args"])
+        except (KeyError, OSError, RuntimeError, TypeError, ValueError) as error:
+            raise DatasetError(
+                f"{path}: its data group or env_args cannot be read: nothing to salvage ({error})"
+            ) from None
+        data_out = fout.create_group("data")
+        for key in data_in.attrs:
+            try:
+                data_out.attrs[key] = data_in.attrs[key]
+            except (KeyError, OSError, RuntimeError):
+                dropped.append(f"data attribute {key} (damaged)")
+        kept = []
+        for name in names:
+            try:
+                g = data_in[name]
+                check_demo(g, name)
+                g.visititems(lambda _, d: d[()] if isinstance(d, h5py.Dataset) else None)
+                fin.copy(g, data_out, name=name)
+                kept.append(name)
+            except (DamagedDataset, KeyError, OSError, RuntimeError) as error:
+                dropped.append(f"data/{name} ({str(error).removeprefix(name).strip(' :')})")
+        dropped += [f"data/{n}" for n in data_in if n not in names] + [k for k in fin if k not in ("data", "mask")]
+        masks = {}
+        try:
+            keys = list(fin["mask"]) if "mask" in fin else []
+        except (KeyError, OSError, RuntimeError):
+            keys = []
+            dropped.append("mask (damaged)")
+        for key in keys:
+            try:
+                masks[key] = [m for m in fin["mask"][key][()] if m.decode() in kept]
+            except (KeyError, OSError, RuntimeError):
+                dropped.append(f"mask/{key} (damaged)")
+        ratio = len(masks.get("valid", [])) / max(1, len(masks.get("valid", [])) + len(masks.get("train", [])))
+        refresh_summary(fout, ratio if masks.get("train") else 0.1)
+        for key, members in masks.items():
+            if key not in fout["mask"]:
+                fout["mask"].create_dataset(key, data=np.array(members, dtype="S"))
+    return dropped
 
 
 # ---------------------------------------------------------------------------------------------------------------- #
@@ -407,7 +499,6 @@ def render_observations(
     output = Path(output)
     if Path(path).resolve() == output.resolve():
         raise DatasetError("write the re-rendered dataset to a new file")
-    tmp = output.with_name(output.name + ".partial")
     overrides = dict(
         use_camera_obs=True,
         has_offscreen_renderer=True,
@@ -416,48 +507,45 @@ def render_observations(
         camera_widths=width,
         camera_depths=depth,
     )
-    try:
-        with open_dataset(path) as fin, h5py.File(tmp, "w") as fout:
-            names = _select_demos(fin, demos, None)
-            data_in = fin["data"]
-            data_out = fout.create_group("data")
-            for key, value in data_in.attrs.items():
-                data_out.attrs[key] = value
-            data_out.attrs["env_args"] = _with_cameras(_text(data_in.attrs["env_args"]), overrides)
-            envs = DemoEnvs(fin, **overrides)
-            try:
-                for name in names:
-                    g = data_in[name]
-                    env, _ = envs.start(g)
-                    for cam in cameras:
-                        _check_camera(env, cam)
-                    out = data_out.create_group(name)
-                    for key in ("actions", "executed_actions", "states", "rewards", "dones"):
-                        if key in g:
-                            fin.copy(g[key], out, name=key)
-                    for key, value in g.attrs.items():
-                        out.attrs[key] = value
-                    if "env_args" in g.attrs:
-                        out.attrs["env_args"] = _with_cameras(_text(g.attrs["env_args"]), overrides)
-                    executed = g["executed_actions" if "executed_actions" in g else "actions"][()]
-                    images = _render_images(env, g["states"][()], executed)
-                    for group in ("obs", "next_obs"):
-                        og = out.create_group(group)
-                        for key, d in g[group].items():
-                            if not _is_camera_key(key):
-                                fin.copy(d, og, name=key)
-                        for key, frames in images[group].items():
-                            og.create_dataset(key, data=frames, compression="gzip", compression_opts=4, shuffle=True)
-            finally:
-                envs.close()
-            if "mask" in fin:
-                fin.copy(fin["mask"], fout, name="mask")
-            if demos:
-                write_masks(fout)
-        os.replace(tmp, output)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    with open_dataset(path) as fin, updated_file(output, new=True) as working:
+        fout = working.file
+        names = _select_demos(fin, demos, None)
+        data_in = fin["data"]
+        data_out = fout.create_group("data")
+        for key, value in data_in.attrs.items():
+            data_out.attrs[key] = value
+        data_out.attrs["env_args"] = _with_cameras(_text(data_in.attrs["env_args"]), overrides)
+        envs = DemoEnvs(fin, **overrides)
+        try:
+            for name in names:
+                g = data_in[name]
+                env, _ = envs.start(g)
+                for cam in cameras:
+                    _check_camera(env, cam)
+                out = data_out.create_group(name)
+                for key in ("actions", "executed_actions", "states", "rewards", "dones"):
+                    if key in g:
+                        fin.copy(g[key], out, name=key)
+                for key, value in g.attrs.items():
+                    out.attrs[key] = value
+                if "env_args" in g.attrs:
+                    out.attrs["env_args"] = _with_cameras(_text(g.attrs["env_args"]), overrides)
+                executed = g["executed_actions" if "executed_actions" in g else "actions"][()]
+                images = _render_images(env, g["states"][()], executed)
+                for group in ("obs", "next_obs"):
+                    og = out.create_group(group)
+                    for key, d in g[group].items():
+                        if not _is_camera_key(key):
+                            fin.copy(d, og, name=key)
+                    for key, frames in images[group].items():
+                        og.create_dataset(key, data=frames, compression="gzip", compression_opts=4, shuffle=True)
+                working.check()  # a full disk stops the job at the demo it refused
+        finally:
+            envs.close()
+        if "mask" in fin:
+            fin.copy(fin["mask"], fout, name="mask")
+        if demos:
+            write_masks(fout)
     return len(names)
 
 

@@ -54,7 +54,9 @@ class ScoopGranularGymEnv(GymWrapper):
         success_hold_s (None or float): seconds success must hold to terminate the episode (the suite's rule);
             None or <= 0: success never terminates it (``is_success`` is then the step's own success)
         record (bool): step through an EpisodeRecorder (``recorder``), so an episode can be written with
-            veragmil_suite.recording.DemoWriter (``env_kwargs`` gives its env metadata)
+            veragmil_suite.recording.DemoWriter (``env_kwargs`` gives its env metadata); an action outside the
+            action space is then clipped to it before it is executed (as the controller would clip it) and stored
+            clipped: the file holds what the robot applied
         **env_kwargs: ScoopGranular's other arguments (n_grains, horizon, control_freq, camera_names, camera_heights,
             camera_widths, camera_depths, reward_shaping, seed, ...); not use_camera_obs, which obs_mode sets
 

@@ -312,6 +312,41 @@ def _recorded(path: Path) -> dict:
         )
 
 
+def check_recording(
+    path: Path,
+    food: str,
+    profile: str = "expert",
+    seed: int = 0,
+    horizon: int = 400,
+    n_grains: int | None = None,
+    cameras: tuple[str, ...] = (),
+    robot: str = "XArm7",
+) -> dict | None:
+    """
+    What ``path`` holds (``_recorded``) when it may be continued with these settings; None when there is no file.
+
+    Raises:
+        StageError: [the file was recorded with other settings, or is not a dataset]
+    """
+    from veragmil_suite.recording import DatasetError
+
+    path = Path(path)
+    if not path.exists():
+        return None
+    try:
+        held = _recorded(path)
+    except DatasetError as error:
+        raise StageError(str(error)) from None
+    wanted = dict(
+        food=food, n_grains=n_grains, horizon=horizon, cameras=list(cameras), profile=profile, seed=seed, robot=robot
+    )
+    differ = {k: (held[k], v) for k, v in wanted.items() if held[k] != v and held["demos"]}
+    if differ:
+        described = ", ".join(f"{k} {a!r} (asked: {b!r})" for k, (a, b) in differ.items())
+        raise StageError(f"{path} was recorded with other settings: {described}; use another output directory")
+    return held
+
+
 def record_food(
     path: Path,
     food: str,
@@ -338,21 +373,8 @@ def record_food(
         StageError: [the file was recorded with other settings, or recording failed]
     """
     path = Path(path)
-    if path.exists():
-        held = _recorded(path)
-        wanted = dict(
-            food=food,
-            n_grains=n_grains,
-            horizon=horizon,
-            cameras=list(cameras),
-            profile=profile,
-            seed=seed,
-            robot=robot,
-        )
-        differ = {k: (held[k], v) for k, v in wanted.items() if held[k] != v and held["demos"]}
-        if differ:
-            described = ", ".join(f"{k} {a!r} (asked: {b!r})" for k, (a, b) in differ.items())
-            raise StageError(f"{path} was recorded with other settings: {described}; use another output directory")
+    held = check_recording(path, food, profile, seed, horizon, n_grains, cameras, robot)
+    if held is not None:
         if held["demos"] >= demos:
             return None
         if held["next_seed"] is None:
@@ -380,6 +402,34 @@ def demo_mask(n: int) -> str:
     return f"first{n}"
 
 
+def check_merged(path: Path, food_files: list[Path]) -> None:
+    """
+    Refuses a merged dataset of other foods' files than ``food_files``: the runs trained on it would be taken for
+    runs on these. The same files changed (more demos recorded) are merged again.
+
+    Raises:
+        StageError: [``path`` merges other foods' files, or cannot be read]
+    """
+    import h5py
+
+    if not Path(path).exists():
+        return
+    try:
+        with h5py.File(path, "r") as f:
+            stamp = f["data"].attrs.get("merged_inputs")
+    except (OSError, KeyError) as error:
+        raise StageError(f"{path} cannot be read ({error}); use another output directory") from None
+    if stamp is None:
+        return  # merged, and stopped before it was stamped: merged again
+    held = [Path(source).name for source, _ in json.loads(stamp)]
+    asked = [Path(source).name for source in food_files]
+    if held != asked:
+        raise StageError(
+            f"{path} merges {', '.join(held)} (asked: {', '.join(asked)}); its training runs would be taken for "
+            "runs on the foods asked: use another output directory"
+        )
+
+
 def merge_profile_dataset(path: Path, food_files: list[Path], demo_counts: list[int]) -> None:
     """
     Merges the foods' files into ``path`` (again when the inputs changed) and writes a mask per demo count: the
@@ -388,6 +438,7 @@ def merge_profile_dataset(path: Path, food_files: list[Path], demo_counts: list[
     import h5py
 
     from veragmil_suite.datasets import merge_datasets
+    from veragmil_suite.recording import updated_file
 
     sources = [str(p) for p in food_files]
     stamp = json.dumps([[s, os.path.getmtime(s)] for s in sources])
@@ -396,14 +447,10 @@ def merge_profile_dataset(path: Path, food_files: list[Path], demo_counts: list[
         with h5py.File(path, "r") as f:
             current = f["data"].attrs.get("merged_inputs")
     if current != stamp:
-        partial = path.with_name(path.name + ".new")
-        if partial.exists():
-            partial.unlink()
-        merge_datasets(sources, partial)
-        with h5py.File(partial, "a") as f:
-            f["data"].attrs["merged_inputs"] = stamp
-        os.replace(partial, path)
-    with h5py.File(path, "a") as f:
+        merge_datasets(sources, path)
+    with updated_file(path) as working:
+        f = working.file
+        f["data"].attrs["merged_inputs"] = stamp
         by_food: dict[str, list[str]] = {}
         for name in sorted(f["data"].keys(), key=lambda n: int(n.split("_")[-1])):
             by_food.setdefault(str(f["data"][name].attrs["food"]), []).append(name)
@@ -413,6 +460,11 @@ def merge_profile_dataset(path: Path, food_files: list[Path], demo_counts: list[
             if key in f:
                 del f[key]
             f.create_dataset(key, data=[name.encode() for name in names])
+
+
+def food_files(path: Path, foods: list[str]) -> list[Path]:
+    """The per-food recordings merged into ``path``: ``<path without .hdf5>/<food>.hdf5``."""
+    return [Path(path).with_suffix("") / f"{food}.hdf5" for food in foods]
 
 
 def record_scripted_dataset(
@@ -435,11 +487,9 @@ def record_scripted_dataset(
     ``path`` (with ``progress``, a bar per food; with ``echo``, the collectors' lines), and merges them into
     ``path`` with a mask per demo count; returns the seconds spent recording."""
     path = Path(path)
-    folder = path.with_suffix("")
     elapsed = 0.0
     files = []
-    for food in foods:
-        file = folder / f"{food}.hdf5"
+    for food, file in zip(foods, food_files(path, foods)):
         seconds = record_food(
             file,
             food,
@@ -608,6 +658,57 @@ def _steps_label(steps: int) -> str:
     return f"{steps // 1000}k" if steps % 1000 == 0 else str(steps)
 
 
+def training_runs(settings: PipelineSettings) -> list[dict]:
+    """Every training run of the grid, in its order: profile, algorithm, demos per food, training seed and config."""
+    out = Path(settings.output_dir)
+    runs = []
+    for profile in settings.profiles:
+        for algo in settings.algos:
+            for n in settings.demos_per_food:
+                for train_seed in settings.train_seeds:
+                    config = training_config(
+                        algo,
+                        out / "data" / f"{profile}.hdf5",
+                        out / "runs",
+                        settings.run_name(profile, algo, n, train_seed),
+                        settings.epochs_of(algo),
+                        settings.steps_per_epoch,
+                        seed=train_seed,
+                        filter_key=demo_mask(n),
+                        save_epochs=[k // settings.steps_per_epoch for k in settings.steps_of(algo)],
+                    )
+                    run = dict(profile=profile, algo=algo, demos_per_food=n, train_seed=train_seed, config=config)
+                    runs.append(run)
+    return runs
+
+
+def check_output_dir(settings: PipelineSettings, runs: list[dict]) -> None:
+    """
+    Everything a run in ``settings.output_dir`` would refuse, checked before it writes anything: a food's recording
+    made with other settings, a merged dataset of other foods, a training run's folder holding another config.
+
+    Raises:
+        StageError: [naming the first piece that belongs to another study]
+    """
+    out = Path(settings.output_dir)
+    for profile in settings.profiles:
+        dataset = out / "data" / f"{profile}.hdf5"
+        files = food_files(dataset, settings.train_foods)
+        for food, file in zip(settings.train_foods, files):
+            check_recording(
+                file,
+                food,
+                profile=profile,
+                seed=food_seed(settings.seed, food),
+                horizon=settings.horizon,
+                n_grains=settings.n_grains,
+                robot=settings.robot,
+            )
+        check_merged(dataset, files)
+    for run in runs:
+        finished_training(run["config"], out / "runs")
+
+
 def run_pipeline(settings: PipelineSettings, progress: bool = True, verbose: bool = False):
     """Records one dataset per profile, trains every algorithm on each, evaluates them and the scripted operators,
     skipping every piece a previous run in the same output directory completed; with ``settings.ray``, on Ray.
@@ -619,6 +720,8 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True, verbose: boo
     from veragmil_suite.evaluation import evaluate
 
     out = Path(settings.output_dir)
+    runs = training_runs(settings)  # every training run, in the grid's order
+    check_output_dir(settings, runs)  # a run refused is refused here, before it writes anything
     (out / "data").mkdir(parents=True, exist_ok=True)
     (out / "runs").mkdir(parents=True, exist_ok=True)
     timings_file = out / "timings.json"
@@ -640,13 +743,11 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True, verbose: boo
             held = cluster_resources()
             cpus, gpus = held.get("CPU", 0), held.get("GPU", 0)
             say(f"running the pieces on Ray at {address} ({cpus:g} CPUs, {gpus:g} GPUs)")
-        runs: list[dict] = []  # every training run, in the grid's order
         for profile in settings.profiles:
-            dataset = out / "data" / f"{profile}.hdf5"
             counts = settings.demos_per_food
             say(f"recording {max(counts)} scripted '{profile}' demos of each of {settings.train_foods}")
             seconds = record_scripted_dataset(
-                dataset,
+                out / "data" / f"{profile}.hdf5",
                 settings.train_foods,
                 counts,
                 profile=profile,
@@ -661,23 +762,6 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True, verbose: boo
                 echo=verbose,
             )
             note(f"record {profile}", seconds or None)
-            for algo in settings.algos:
-                for n in counts:
-                    for train_seed in settings.train_seeds:
-                        config = training_config(
-                            algo,
-                            dataset,
-                            out / "runs",
-                            settings.run_name(profile, algo, n, train_seed),
-                            settings.epochs_of(algo),
-                            settings.steps_per_epoch,
-                            seed=train_seed,
-                            filter_key=demo_mask(n),
-                            save_epochs=[k // settings.steps_per_epoch for k in settings.steps_of(algo)],
-                        )
-                        runs.append(
-                            dict(profile=profile, algo=algo, demos_per_food=n, train_seed=train_seed, config=config)
-                        )
         checkpoints = _train_runs(runs, settings, out / "runs", address, say, note, progress, verbose)
 
         agents: dict[str, str] = {}

@@ -1,10 +1,10 @@
-"""Demonstrations in robomimic's HDF5 schema, written directly and flushed episode by episode.
+"""Demonstrations in robomimic's HDF5 schema, written directly, one episode at a time.
 
 One file layout, defined here and nowhere else (robomimic's, plus our provenance)::
 
     data                      attrs: env_args (robomimic env meta, JSON), total, provenance (see DemoWriter)
       demo_N                  attrs: num_samples, model_file, env_args, provenance and the episode's metrics
-        actions (T, 6)        OSC_POSE deltas in [-1, 1]
+        actions (T, 6)        OSC_POSE deltas within the controller's input range ([-1, 1]), T >= 1
         states (T, S)         flattened MuJoCo state *before* each action (robomimic's convention)
         rewards (T,), dones (T,)   dones: 1 where the next state is a success, and at the last step
         obs/<key>, next_obs/<key>  robomimic's observation dict: robot0_* proprioception, ``object`` (robosuite's
@@ -15,23 +15,27 @@ Each demo's env_args are those it was recorded with; ``data``'s are the first re
 another food, grain count or other env_kwargs are appended or merged in, ``env_kwargs_variants``
 (:func:`env_kwargs_variants`): what differs between the demos, and how many demos have each.
 
-The file is closed between episodes, so killing the collecting process (SIGINT or SIGKILL) mid-episode leaves
-every finished episode readable. An episode is written under a temporary name and renamed to ``demo_N`` once
-complete; appending continues the numbering. Recording starts from robomimic's ``reset_to(get_state())``
-(:func:`veragmil_suite.robomimic_obs.restart_from_current_state`), so replaying the actions open loop reproduces
-the recorded states exactly; observations and model XML come from veragmil_suite.robomimic_obs.
+Every change to a file is atomic (veragmil_suite.safe_hdf5): an episode is written into a working copy that
+replaces the file once complete, so killing the collecting process at any instant, a full disk or an I/O error
+leaves every episode written before readable; a DemoWriter holds the file's write lock for its whole session, so
+a second writer is refused before it records. Appending continues the numbering. Recording starts from
+robomimic's ``reset_to(get_state())`` (:func:`veragmil_suite.robomimic_obs.restart_from_current_state`), so
+replaying the actions open loop reproduces the recorded states exactly; observations and model XML come from
+veragmil_suite.robomimic_obs.
 """
 
 from __future__ import annotations
 
 import contextlib
 import datetime
+import errno
 import json
 import platform
 import re
 import signal
 import subprocess
 import threading
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -41,7 +45,7 @@ import numpy as np
 import robosuite
 
 import veragmil_suite
-from veragmil_suite import robomimic_obs
+from veragmil_suite import robomimic_obs, safe_hdf5
 from veragmil_suite.environments.scoop import StageTracker
 from veragmil_suite.foods import DEFAULT_PHYSICS
 
@@ -50,10 +54,10 @@ ROBOSUITE_ENV_TYPE = 1  # robomimic's EnvType.ROBOSUITE_TYPE
 WRITER = "veragmil_suite.recording"
 FORMAT_VERSION = 1
 DEMO_PREFIX = "demo_"
-# a demo is written under this root group and moved into data/ once complete: robomimic, which lists data/, never
-# sees half a demo, whenever the writer is killed
+# where older versions wrote a demo before moving it into data/ (a kill left it there): a root group, and before
+# that data/ under this prefix; what they left is removed at the next write or by veragmil-dataset-info --clean
 PENDING_GROUP = "incomplete"
-_PENDING_PREFIX = "incomplete_"  # where older versions kept a demo being written: in data/, under this prefix
+_PENDING_PREFIX = "incomplete_"
 IMAGE_COMPRESSION = dict(compression="gzip", compression_opts=4, shuffle=True)
 # the key of data's env_args that lists the env_kwargs its demos differ in (env_kwargs_variants)
 VARIANTS_KEY = "env_kwargs_variants"
@@ -77,6 +81,14 @@ METRIC_KEYS = (
 
 class DatasetError(ValueError):
     """A file that is not a ScoopGranular dataset, is corrupt, or does not match what is written to it."""
+
+
+class DamagedDataset(DatasetError):
+    """A ScoopGranular dataset with a part that does not read or is not a valid demo: veragmil-dataset-info --clean
+    rebuilds it from the demos that do (veragmil_suite.datasets.salvage_dataset)."""
+
+
+SALVAGE_HINT = "veragmil-dataset-info --clean keeps the demos that still read"
 
 
 # ---------------------------------------------------------------------------------------------------------------- #
@@ -118,6 +130,7 @@ class Episode:
     metrics: dict
     attrs: dict = field(default_factory=dict)
     executed_actions: np.ndarray | None = None  # when not the actions stored for learning (injected noise)
+    action_bounds: tuple[np.ndarray, np.ndarray] | None = None  # the env's action space (low, high), when known
 
     @property
     def num_samples(self) -> int:
@@ -161,19 +174,23 @@ class EpisodeRecorder:
         """
         env.step(action), recorded. Returns (obs, reward, done, info), obs that of the state reached.
 
-        ``label`` is the action stored for learning when it is not the one executed (injected noise): the
-        executed one is kept as well, in executed_actions, so the demo still replays.
+        An action outside the env's action space is clipped to it before it is executed, as the controller clips
+        its input: what is executed and stored is what the robot applied. ``label`` is the action stored for
+        learning when it is not the one executed (injected noise), clipped alike: the executed one is kept as well,
+        in executed_actions, so the demo still replays. A non-finite action is not executed (env.step ends the
+        episode with a physics_error that says why) and not stored; the episode's metrics carry that error.
         """
         if self.obs is None:
             raise RuntimeError("EpisodeRecorder.reset() must come before step()")
-        action = np.asarray(action, dtype=np.float64)
-        stored = action if label is None else np.asarray(label, dtype=np.float64)
-        if label is not None and not np.isfinite(stored).all():
-            raise ValueError(f"non-finite action label {stored.tolist()}: labels must be finite numbers")
+        if label is not None and not np.isfinite(np.asarray(label, dtype=np.float64)).all():
+            raise ValueError(f"non-finite action label {np.asarray(label).tolist()}: labels must be finite numbers")
+        action = self._clipped(action)
+        stored = action if label is None else self._clipped(label)
         state = self.env.sim.get_state().flatten()
         raw, reward, done, info = self.env.step(action)
         if not np.isfinite(action).all():
-            return raw, reward, done, info  # not executed (env.step ended the episode and says why): not stored
+            self._info = info  # not executed, not stored: the episode ends here, and its metrics say why
+            return raw, reward, done, info
         after = robomimic_obs.observation(self.env, raw)
         self._states.append(state)
         self._executed.append(action.copy())
@@ -186,6 +203,14 @@ class EpisodeRecorder:
         self._stages.update(info)
         self.obs, self._converted = raw, after
         return raw, reward, done, info
+
+    def _clipped(self, action) -> np.ndarray:
+        """``action`` within the env's action space (one of another size is left to env.step to refuse)."""
+        action = np.asarray(action, dtype=np.float64)
+        low, high = self.env.action_spec
+        if action.shape != np.shape(low) or not np.isfinite(action).all():
+            return action  # env.step refuses it, or ends the episode saying why
+        return np.clip(action, low, high)
 
     @property
     def num_steps(self) -> int:
@@ -209,6 +234,7 @@ class EpisodeRecorder:
             model_file=self.model_file,
             metrics=episode_metrics(self._info, self._stages.stage),
             attrs=dict(attrs or {}),
+            action_bounds=tuple(np.asarray(b, dtype=np.float64) for b in self.env.action_spec),
         )
 
 
@@ -256,6 +282,10 @@ def open_dataset(path: str | Path, mode: str = "r") -> h5py.File:
     try:
         f = h5py.File(path, mode)
     except OSError as e:
+        if e.errno == errno.EAGAIN or "unable to lock file" in str(e):
+            raise DatasetError(
+                f"{path} is in use by another process, which holds it open for writing ({_first_line(e)})"
+            ) from None
         raise DatasetError(
             f"{path} cannot be read as HDF5: it is corrupt, truncated, or not an HDF5 file ({_first_line(e)})"
         ) from None
@@ -286,26 +316,39 @@ def check_schema(f: h5py.File, path: str | Path = "") -> dict:
                 "not a veragmil_suite dataset"
             )
         for name in demo_names(f):
-            _check_demo(data[name], f"{where}:data/{name}")
+            check_demo(data[name], f"{where}:data/{name}")
+        for key in f.get("mask", {}):
+            f["mask"][key][()]  # robomimic reads its filter keys
+    except DamagedDataset as e:
+        raise DamagedDataset(f"{e}; {SALVAGE_HINT}") from None
     except (OSError, KeyError, RuntimeError) as e:
-        raise DatasetError(f"{where} is damaged: {_first_line(e)}") from None
+        raise DamagedDataset(f"{where} is damaged ({_first_line(e)}); {SALVAGE_HINT}") from None
     return meta
 
 
-def _check_demo(g, where: str) -> None:
+def check_demo(g: h5py.Group, where: str) -> None:
+    """Refuse a stored demo that is incomplete, empty, has non-finite actions or arrays of other lengths.
+
+    Raises:
+        DamagedDataset: [naming what is wrong]
+    """
     for key in ("actions", "states", "rewards", "dones"):
         if not isinstance(g.get(key), h5py.Dataset):
-            raise DatasetError(f"{where} is incomplete: no {key!r} dataset")
+            raise DamagedDataset(f"{where} is incomplete: no {key!r} dataset")
     n = g["actions"].shape[0]
     if "num_samples" not in g.attrs or int(g.attrs["num_samples"]) != n or "model_file" not in g.attrs:
-        raise DatasetError(f"{where} is incomplete: num_samples or model_file missing or wrong")
+        raise DamagedDataset(f"{where} is incomplete: num_samples or model_file missing or wrong")
+    if n == 0:
+        raise DamagedDataset(f"{where} has no steps: a demo holds at least one transition")
+    if not np.isfinite(g["actions"][()]).all():
+        raise DamagedDataset(f"{where} has non-finite actions")
     for key in ("states", "rewards", "dones"):
         if g[key].shape[0] != n:
-            raise DatasetError(f"{where}: {key} has {g[key].shape[0]} steps, actions {n}")
+            raise DamagedDataset(f"{where}: {key} has {g[key].shape[0]} steps, actions {n}")
     for group in ("obs", "next_obs"):
         for k, d in g.get(group, {}).items():
             if d.shape[0] != n:
-                raise DatasetError(f"{where}: {group}/{k} has {d.shape[0]} steps, actions {n}")
+                raise DamagedDataset(f"{where}: {group}/{k} has {d.shape[0]} steps, actions {n}")
 
 
 def provenance(device: str, operator: str, food: str, robot: str, **extra) -> dict:
@@ -330,7 +373,8 @@ def provenance(device: str, operator: str, food: str, robot: str, **extra) -> di
 
 class DemoWriter:
     """
-    Writes episodes to a robomimic-schema HDF5 file, each one flushed and the file closed when it is written.
+    Writes episodes to a robomimic-schema HDF5 file, each one in one atomic change of the file (safe_hdf5), holding
+    the file's write lock from construction to close().
 
     Args:
         path (str or Path): the file; appended to if it exists (numbering continues), else created with the first
@@ -341,7 +385,8 @@ class DemoWriter:
         valid_ratio (float): fraction of demos in mask/valid (the split is redone at every write)
 
     Raises:
-        DatasetError: [the file is not a ScoopGranular dataset of ours, is corrupt, or its env differs]
+        DatasetError: [the file is in use by another process, is not a ScoopGranular dataset of ours, is corrupt,
+            or its env differs; its folder cannot be written]
     """
 
     def __init__(self, path: str | Path, env_meta: dict, provenance: dict, valid_ratio: float = 0.1):
@@ -354,17 +399,47 @@ class DemoWriter:
         self.written: list[str] = []  # demos written by this writer, in order
         self.seeds_used: set[int] = set()  # env seeds of the file's attempts, kept or discarded
         self.next_index = 0
-        if self.path.exists():
-            with open_dataset(self.path, "a") as f:
-                self._check_appendable(f)
-                remove_interrupted_writes(f)
-                self.next_index = self._next_index(f)
-                self.seeds_used = seeds_used(f)
-
-    def _create_if_absent(self) -> None:
-        if not self.path.exists():
+        self._lock = safe_hdf5.FileLock(self.path)
+        self._made_folders = [p for p in (self.path.parent, *self.path.parent.parents) if not p.exists()]
+        try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            with h5py.File(self.path, "w") as f:
+            self._lock.acquire()
+            if self.path.exists():
+                with open_dataset(self.path) as f:
+                    self._check_appendable(f)
+                    self.next_index = self._next_index(f)
+                    self.seeds_used = seeds_used(f)
+        except (safe_hdf5.FileInUse, safe_hdf5.WriteFailed) as e:
+            self.close()
+            raise DatasetError(str(e)) from None
+        except OSError as e:
+            self.close()
+            raise DatasetError(f"{self.path}: cannot make its folder ({e.strerror or e})") from None
+        except BaseException:
+            self.close()
+            raise
+
+    def close(self) -> None:
+        """Release the file's write lock (and remove the folders made for a file that was never written)."""
+        self._lock.release()
+        if not self.path.exists():
+            for folder in self._made_folders:
+                with contextlib.suppress(OSError):
+                    folder.rmdir()
+
+    def __enter__(self) -> DemoWriter:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    @contextlib.contextmanager
+    def _update(self) -> Iterator[h5py.File]:
+        """The file open for one atomic change (created with its file attributes when new), Ctrl-C held."""
+        safe_hdf5.remove_working_copies(self.path)  # what writes killed before this session left
+        with _deferred_sigint(), updated_file(self.path, lock=self._lock) as working:
+            f = working.file
+            if "data" not in f:
                 data = f.create_group("data")
                 data.attrs["env_args"] = json.dumps(self.env_meta, indent=4)
                 data.attrs["total"] = 0
@@ -373,7 +448,8 @@ class DemoWriter:
                 for key, value in self.provenance.items():
                     data.attrs[key] = _attr(value)
                 data.attrs["attempts"] = "[]"
-                refresh_summary(f, self.valid_ratio)
+            remove_interrupted_writes(f)
+            yield f
 
     def _check_appendable(self, f: h5py.File) -> None:
         data = f["data"]
@@ -404,18 +480,21 @@ class DemoWriter:
             return len(demo_names(f))
 
     def write(self, episode: Episode) -> str:
-        """Append one episode as the next demo_N, flush and close the file; returns the demo's name."""
+        """
+        Append one episode as the next demo_N in one atomic change of the file; returns the demo's name.
+
+        Raises:
+            DatasetError: [the episode is not a valid demo (check_episode), its observations differ from the
+                file's, or the disk refused the write: the file is then as it was]
+        """
+        check_episode(episode, self.env_meta, where=f"{self.path}: the episode")
         name = f"{DEMO_PREFIX}{self.next_index}"
-        self._create_if_absent()
-        with _deferred_sigint(), h5py.File(self.path, "a") as f:
+        with self._update() as f:
             data = f["data"]
             first = demo_names(f)[:1]
             if first:
                 self._check_same_obs(data[first[0]], episode)
-            pending = f.require_group(PENDING_GROUP)
-            if name in pending:
-                del pending[name]
-            g = pending.create_group(name)
+            g = data.create_group(name)
             g.create_dataset("actions", data=episode.actions)
             if episode.executed_actions is not None:
                 g.create_dataset("executed_actions", data=episode.executed_actions)
@@ -432,21 +511,18 @@ class DemoWriter:
             for key, value in {**self.provenance, **episode.attrs, **episode.metrics}.items():
                 g.attrs[key] = _attr(value)
             g.attrs["num_samples"] = episode.num_samples
-            f.flush()
-            f.move(f"{PENDING_GROUP}/{name}", f"data/{name}")  # in data/ only once complete
-            del f[PENDING_GROUP]
             self._log(data, dict(demo=name, kept=True, **episode.attrs, **episode.metrics))
-            self._update_totals(f)
-            f.flush()
-            self.next_index += 1
-            self.written.append(name)
+            refresh_summary(f, self.valid_ratio)
+        self.next_index += 1
+        self.written.append(name)
         return name
 
     def log_discarded(self, metrics: dict, attrs: dict | None = None) -> None:
         """Store the metrics of an episode the operator discarded (success rates must count every attempt)."""
-        self._create_if_absent()
-        with _deferred_sigint(), h5py.File(self.path, "a") as f:
+        with self._update() as f:
             self._log(f["data"], dict(demo=None, kept=False, **(attrs or {}), **metrics))
+            if "mask" not in f:
+                refresh_summary(f, self.valid_ratio)
 
     def _log(self, data: h5py.Group, entry: dict) -> None:
         attempts = json.loads(data.attrs.get("attempts", "[]"))
@@ -462,23 +538,133 @@ class DemoWriter:
                 f"(file: {sorted(theirs.items())}; episode: {sorted(ours.items())})"
             )
 
-    def _update_totals(self, f: h5py.File) -> None:
-        refresh_summary(f, self.valid_ratio)
+
+@contextlib.contextmanager
+def updated_file(
+    path: str | Path, new: bool = False, lock: safe_hdf5.FileLock | None = None
+) -> Iterator[safe_hdf5.WorkingCopy]:
+    """
+    ``path`` open for one atomic change (safe_hdf5.replaced; with ``new``, written anew): the one way a dataset
+    file is written; the WorkingCopy's ``file`` is the h5py File. A change that raises, and a disk that refuses a
+    write, leave the file as it was.
+
+    Raises:
+        DatasetError: [the file is in use by another process, or the disk refused the write]
+    """
+    try:
+        with safe_hdf5.replaced(path, new=new, lock=lock) as working:
+            yield working
+    except (safe_hdf5.FileInUse, safe_hdf5.WriteFailed) as e:
+        raise DatasetError(str(e)) from None
+
+
+@contextlib.contextmanager
+def write_lock(path: str | Path) -> Iterator[safe_hdf5.FileLock]:
+    """The write lock of ``path``, held for the block (several changes, or cleaning beside the file).
+
+    Raises:
+        DatasetError: [another process writes the file, or its folder cannot be written]
+    """
+    lock = safe_hdf5.FileLock(path)
+    try:
+        lock.acquire()
+    except (safe_hdf5.FileInUse, safe_hdf5.WriteFailed) as e:
+        raise DatasetError(str(e)) from None
+    try:
+        yield lock
+    finally:
+        lock.release()
+
+
+def check_episode(episode: Episode, env_meta: dict | None = None, where: str = "the episode") -> None:
+    """
+    Refuse an episode that is not a valid demo: no steps, arrays of other lengths, non-finite actions, states or
+    rewards, actions outside the action space (the episode's own, else that of ``env_meta``'s controller), or an
+    episode that ended at a physics error without saying which.
+
+    Raises:
+        DatasetError: [naming what is wrong]
+    """
+    n = episode.num_samples
+    if n < 1:
+        raise DatasetError(f"{where} has no steps: a demo holds at least one transition")
+    arrays = dict(states=episode.states, rewards=episode.rewards, dones=episode.dones)
+    arrays.update({f"obs/{k}": v for k, v in episode.obs.items()})
+    arrays.update({f"next_obs/{k}": v for k, v in episode.next_obs.items()})
+    if episode.executed_actions is not None:
+        arrays["executed_actions"] = episode.executed_actions
+    for key, value in arrays.items():
+        if len(value) != n:
+            raise DatasetError(f"{where}: {key} has {len(value)} steps, actions {n}")
+    for key in ("actions", "executed_actions", "states", "rewards"):
+        value = getattr(episode, key)
+        if value is not None and not np.isfinite(value).all():
+            raise DatasetError(f"{where} has non-finite {key}")
+    if episode.action_bounds is not None:
+        low, high = episode.action_bounds
+    else:
+        limit = action_limit((env_meta or {}).get("env_kwargs", {}))
+        low, high = -limit, limit
+    for key in ("actions", "executed_actions"):
+        value = getattr(episode, key)
+        if value is not None and ((value < low).any() or (value > high).any()):
+            raise DatasetError(
+                f"{where} has {key} outside the action space ({np.min(low):g} to {np.max(high):g}): "
+                f"{float(np.min(value)):g} to {float(np.max(value)):g}"
+            )
+    if episode.attrs.get("end_reason") == "physics" and not episode.metrics.get("physics_error"):
+        raise DatasetError(f"{where} ended at a physics error but does not say which (empty physics_error)")
+
+
+def action_limit(env_kwargs: dict) -> float:
+    """The largest action magnitude the stored controller takes (its parts' input_max and input_min; 1 when it
+    names none, robosuite's default)."""
+    limits: list[float] = []
+
+    def visit(node) -> None:
+        if isinstance(node, dict):
+            for key, value in node.items():
+                if key in ("input_max", "input_min"):
+                    with contextlib.suppress(TypeError, ValueError):
+                        limits.extend(np.abs(np.asarray(value, dtype=np.float64)).ravel().tolist())
+                else:
+                    visit(value)
+
+    visit(env_kwargs.get("controller_configs"))
+    return max(limits, default=1.0)
+
+
+def demo_problems(g: h5py.Group, limit: float) -> list[str]:
+    """What is wrong with a stored demo that still reads (veragmil-dataset-info flags it): actions beyond the
+    controller's ``limit``, or an end at a physics error that does not say which."""
+    problems = []
+    actions = g["actions"][()]
+    if actions.size and np.abs(actions).max() > limit:
+        problems.append(f"actions outside the action space (|a| up to {np.abs(actions).max():g}, limit {limit:g})")
+    if _text(g.attrs.get("end_reason", "")) == "physics" and not _text(g.attrs.get("physics_error", "")):
+        problems.append("ended at a physics error but its physics_error is empty")
+    return problems
 
 
 def interrupted_writes(f: h5py.File) -> list[str]:
     """Demos whose writing was interrupted (the writer killed): never part of the dataset, safe to remove."""
-    pending = [f"{PENDING_GROUP}/{name}" for name in f[PENDING_GROUP]] if PENDING_GROUP in f else []
+    pending = []
+    if PENDING_GROUP in f:
+        try:
+            pending = [f"{PENDING_GROUP}/{name}" for name in f[PENDING_GROUP]] or [PENDING_GROUP]
+        except (KeyError, OSError, RuntimeError):  # a kill left the group itself unreadable: it goes whole
+            pending = [PENDING_GROUP]
     return pending + [f"data/{name}" for name in f["data"] if name.startswith(_PENDING_PREFIX)]
 
 
 def remove_interrupted_writes(f: h5py.File) -> list[str]:
     """Delete what interrupted writes left (``interrupted_writes``); returns what was removed."""
     removed = interrupted_writes(f)
-    for path in removed:
-        del f[path]
     if PENDING_GROUP in f:
         del f[PENDING_GROUP]
+    for path in removed:
+        if not path.startswith(PENDING_GROUP):
+            del f[path]
     return removed
 
 
@@ -613,6 +799,10 @@ def _short_provenance(p: dict) -> dict:
 
 def _canonical(value) -> str:
     return json.dumps(value, sort_keys=True)
+
+
+def _text(value) -> str:
+    return value.decode() if isinstance(value, bytes) else str(value)
 
 
 def _first_line(e: BaseException) -> str:

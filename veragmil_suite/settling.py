@@ -22,6 +22,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from veragmil_suite import pile_cache
 from veragmil_suite.models import contact_groups
 from veragmil_suite.models.bowl import Bowl
 from veragmil_suite.models.grains import GrainPile
@@ -123,28 +124,14 @@ def settle(bowl: Bowl, pile: GrainPile, option: dict, timestep: float, use_disk:
     if key in _MEMORY:
         return _MEMORY[key]
     path = cache_dir() / f"{key}.npz"
-    if use_disk and path.exists():
-        try:
-            with np.load(path) as f:
-                result = SettledPile(f["bowl_qpos"], f["grain_qpos"], float(f["max_speed"]), float(f["settle_time"]))
-            if result.grain_qpos.shape == (pile.n_grains, 7) and np.isfinite(result.grain_qpos).all():
-                _MEMORY[key] = result
-                return result
-        except Exception:  # noqa: BLE001 - truncated (BadZipFile, EOFError), foreign or damaged: any of them
-            pass  # is simulated anew and overwritten
+    entry = pile_cache.load(path, pile.n_grains) if use_disk else None  # None: missing or invalid, settled anew
+    if entry is not None:
+        _MEMORY[key] = SettledPile(*entry)
+        return _MEMORY[key]
     result = _simulate(xml, bowl, pile)
     _MEMORY[key] = result
     if use_disk:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
-        np.savez(
-            tmp,
-            bowl_qpos=result.bowl_qpos,
-            grain_qpos=result.grain_qpos,
-            max_speed=result.max_speed_m_s,
-            settle_time=result.settle_time_s,
-        )
-        os.replace(tmp, path)  # atomic: parallel workers never read half a file
+        pile_cache.save(path, result.bowl_qpos, result.grain_qpos, result.max_speed_m_s, result.settle_time_s)
     return result
 
 

@@ -78,3 +78,39 @@ def record_file(
 
 def states_equal(a: np.ndarray, b: np.ndarray) -> bool:
     return a.shape == b.shape and bool(np.array_equal(a, b))
+
+
+def synthetic_episode(steps: int = 20, seed: int = 0, **changes):
+    """An Episode of the file's form without an env (random values, actions within [-1, 1]): for tests of the
+    writer itself, which need many writes fast."""
+    from veragmil_suite.recording import Episode
+
+    rng = np.random.default_rng(seed)
+
+    def obs():
+        return {
+            "robot0_eef_pos": rng.normal(size=(steps, 3)),
+            "overhead_image": rng.integers(0, 255, (steps, CAMERA_SIZE, CAMERA_SIZE, 3), dtype=np.uint8),
+        }
+
+    fields = dict(
+        actions=rng.uniform(-1, 1, (steps, 6)),
+        states=rng.normal(size=(steps, 120)),
+        rewards=np.zeros(steps),
+        dones=np.r_[np.zeros(steps - 1, dtype=np.int64), 1] if steps else np.zeros(0, dtype=np.int64),
+        obs=obs(),
+        next_obs=obs(),
+        model_file="<mujoco model='synthetic'/>",
+        metrics=dict(success=False, grains_spilled=0, physics_error="", stage="approach"),
+        attrs=dict(seed=seed),
+    )
+    fields.update(changes)
+    return Episode(**fields)
+
+
+def synthetic_writer(path, **kwargs):
+    """A DemoWriter of a light scene's metadata (no env is built)."""
+    env_kwargs = tiny_env_kwargs()
+    return DemoWriter(
+        path, env_meta(env_kwargs), provenance("scripted", "tester", env_kwargs["food"], "XArm7"), **kwargs
+    )

@@ -494,6 +494,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.seed is None:
         args.seed = 0 if last is None else last + 1
     elif last is not None and args.seed <= last:
+        writer.close()
         print(
             f"veragmil-collect: {args.output} already holds attempts with seeds up to {last} (attempt k runs with "
             f"seed SEED + k, and a seed gives the same episode again): --seed {args.seed} would repeat them; omit "
@@ -516,6 +517,7 @@ def main(argv: list[str] | None = None) -> int:
             seed=args.seed,
         )
     except ValueError as e:
+        writer.close()
         print(f"veragmil-collect: {e}", file=sys.stderr)
         return 2
     if args.workers > 1 or args.ray is not None:
@@ -524,7 +526,11 @@ def main(argv: list[str] | None = None) -> int:
         env = None
         attempts_iter = parallel_attempts(args, env_kwargs, piles)
     else:
-        operator = make_operator(args, env)
+        try:
+            operator = make_operator(args, env)
+        except SystemExit:
+            writer.close()
+            raise
         recorder = recording.EpisodeRecorder(env)
         attempts_iter = local_attempts(env, recorder, operator, args, render, realtime=source == "human")
     kept, attempts, results = 0, 0, []
@@ -537,6 +543,7 @@ def main(argv: list[str] | None = None) -> int:
         )
     teleop = operator if isinstance(operator, TeleopOperator) else None
     discarded = 0
+    failed = None  # the write the disk refused: the collection stops there
     try:
         while kept < args.episodes and (max_attempts is None or attempts < max_attempts):
             if teleop is not None:
@@ -563,12 +570,18 @@ def main(argv: list[str] | None = None) -> int:
             if isinstance(operator, TeleopOperator):
                 operator.end()
             results.append(metrics)
+            try:
+                if keep:
+                    name = writer.write(episode)
+                else:
+                    writer.log_discarded(metrics, attrs=dict(attempt=attempts, end_reason=reason, seed=seed))
+            except recording.DatasetError as e:
+                failed = f"{e}: episode {attempts} (seed {seed}) is not saved; all saved before it are ({kept} here)"
+                break
             if keep:
-                name = writer.write(episode)
                 kept += 1
                 print(f"  saved as {name} ({kept}/{args.episodes})", flush=True)
             else:
-                writer.log_discarded(metrics, attrs=dict(attempt=attempts, end_reason=reason, seed=seed))
                 discarded += 1
                 print("  discarded", flush=True)
     except KeyboardInterrupt:
@@ -585,7 +598,11 @@ def main(argv: list[str] | None = None) -> int:
             operator.close()
         if env is not None:
             env.close()
+        writer.close()
     _print_summary(results, kept, args.output)
+    if failed is not None:
+        print(f"veragmil-collect: {failed}", file=sys.stderr)
+        return 2
     if kept < args.episodes:
         print(f"veragmil-collect: saved {kept} of {args.episodes} requested episodes", file=sys.stderr)
         return 1

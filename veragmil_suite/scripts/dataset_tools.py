@@ -76,11 +76,16 @@ def format_summary(s: dict, verbose: bool = False) -> str:
             f"  {r['mean_spilled_cm3']:>12.3f}  {t:>7}"
         )
     lines.append("  filter keys: " + ", ".join(f"{k} {v}" for k, v in sorted(s["filter_keys"].items())))
+    if s.get("being_written"):
+        lines.append("  BEING WRITTEN by another process: this is the file as of its last complete write")
     if s["interrupted_writes"]:
         lines.append(
-            f"  INTERRUPTED WRITES (not part of the dataset): {', '.join(s['interrupted_writes'])}; "
-            "veragmil-dataset-info --clean removes them"
+            f"  INTERRUPTED WRITES (not part of the dataset): {', '.join(s['interrupted_writes'])}; each was a write "
+            "cut short (killed, disk full or an I/O error): the episode it was writing is lost, every demo above is "
+            "complete; veragmil-dataset-info --clean removes them"
         )
+    for name, problems in s.get("problems", {}).items():
+        lines.append(f"  FLAGGED {name}: {'; '.join(problems)}")
     for group in s["duplicates"]:
         lines.append(f"  DUPLICATES: {', '.join(group)} are the same episode (same start state and actions)")
     lines.append("  obs keys (per-step shape, dtype):")
