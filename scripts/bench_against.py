@@ -14,7 +14,7 @@ the host stayed the same through the run.
 
 Each side runs the episodes of seeds 0..episodes-1 on pile variant 0 (resets untimed; a first untimed episode
 settles or loads the piles). A side's own defaults apply (this checkout's sleeping among them); ``--sleep
-off`` switches this checkout's sleeping off.
+off`` switches this checkout's sleeping off, ``--physics`` picks this checkout's physics (veragmil_suite.foods.PHYSICS).
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parent.parent
 
 
-def _child(food: str, episodes: int, lift_steps: int, sleep_off: bool) -> dict:
+def _child(food: str, episodes: int, lift_steps: int, sleep_off: bool, physics: str | None = None) -> dict:
     """One side's figures, in the process of that side's checkout and MuJoCo (only API both sides have)."""
     import time
 
@@ -49,6 +49,8 @@ def _child(food: str, episodes: int, lift_steps: int, sleep_off: bool) -> dict:
     kwargs = dict(robots="XArm7", food=food, pile_variants=1, seed=0, **headless)
     if sleep_off:
         kwargs["sleep_tolerance"] = None
+    if physics is not None:
+        kwargs["physics"] = physics
     env = robosuite.make("ScoopGranular", **kwargs)
     expert = ScriptedScooper(env, "expert")
 
@@ -85,7 +87,7 @@ def _run_side(name: str, checkout: Path, extra_path: str | None, args) -> dict:
     code = (
         f"import json, sys; sys.path.insert(0, {str(REPO / 'scripts')!r}); import bench_against as b; "
         f"print('RESULT ' + json.dumps(b._child({args.food!r}, {args.episodes}, {args.lift_steps}, "
-        f"{name == 'this' and args.sleep == 'off'})))"
+        f"{name == 'this' and args.sleep == 'off'}, {args.physics if name == 'this' else None!r})))"
     )
     out = subprocess.run([sys.executable, "-c", code], env=env, cwd=checkout, capture_output=True, text=True)
     lines = [line for line in out.stdout.splitlines() if line.startswith("RESULT ")]
@@ -106,12 +108,15 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--rounds", type=int, default=3, help="rounds, each running both sides once")
     parser.add_argument("--lift-steps", type=int, default=200, help="steps of robosuite's Lift timed per side")
     parser.add_argument("--sleep", choices=("on", "off"), default="on", help="this checkout's island sleeping")
+    parser.add_argument("--physics", help="this checkout's physics (calibrated or table1; default: its default)")
     parser.add_argument("--cache-root", help="settled piles cached per side under this folder (default: shared)")
     args = parser.parse_args(argv)
     if not (args.base / "veragmil_suite" / "__init__.py").is_file():
         parser.error(f"--base {args.base} holds no veragmil_suite package (a checkout's top level is expected)")
-    from veragmil_suite.foods import FOODS
+    from veragmil_suite.foods import FOODS, PHYSICS
 
+    if args.physics is not None and args.physics not in PHYSICS:
+        parser.error(f"unknown physics {args.physics!r}; accepted physics: {', '.join(PHYSICS)}")
     if args.food not in FOODS:
         parser.error(f"unknown food {args.food!r}; accepted foods: {', '.join(FOODS)}")
     if args.episodes < 1 or args.rounds < 1:

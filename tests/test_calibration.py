@@ -56,16 +56,11 @@ def test_table1_rice_creeps_below_its_friction_angle():
     assert slope_travel_m(FOODS["rice"], "table1", 8.0) > 5e-4
 
 
-@pytest.mark.parametrize("food", sorted(FOODS))
-def test_grain_mass_matches_the_catalog(food):
-    spec = FOODS[food]
-    mass = grain_mass_mg(spec, "calibrated")
-    grain = spec.grain("calibrated")
-    expected = np.mean([grain.piece_volume_m3(s) for s in np.linspace(*grain.size_range_m, 50)]) * grain.density_kg_m3
-    assert mass == pytest.approx(expected * 1e6, rel=0.05)
-    ref = spec.reference.grain_mass_mg
-    if ref is not None:
-        assert 0.75 * ref.low <= mass <= 1.25 * ref.high
+@pytest.mark.parametrize("food", [f for f in sorted(FOODS) if FOODS[f].reference.grain_mass_mg is not None])
+def test_grain_mass_matches_the_published_mass(food):
+    """Within the benchmark's 25% of the published range; Table I's rice and barley were 2-5x too heavy."""
+    ref = FOODS[food].reference.grain_mass_mg
+    assert 0.75 * ref.low <= grain_mass_mg(FOODS[food], "calibrated") <= 1.25 * ref.high
 
 
 @pytest.mark.parametrize("food", sorted(FOODS))

@@ -54,19 +54,21 @@ class CylinderResult:
 TUBE_RADIUS_M = 0.021  # the standard test's tube, 3.5 cm filled: rice
 TUBE_GRAINS_ACROSS = 3.0  # larger grains get a tube this many grain lengths in radius...
 TUBE_RADIUS_MAX_M = 0.06  # ...up to this (pasta: a 12 cm tube of 2-3.5 cm pieces)
+TUBE_GRAINS_MAX = 1000  # a tube that would hold more is narrowed until it holds this many (thin flakes)
+FILL_PACKING_GUESS = 0.6
 
 
-def tube_size(food: FoodSpec, physics: str, scale: float = 1.0) -> tuple[float, float]:
-    """Tube radius and fill height (m): the standard 2.1 cm by 3.5 cm, widened for large grains, times ``scale``."""
-    size = food.grain(physics).size_range_m[1]
-    radius = scale * min(max(TUBE_RADIUS_M, TUBE_GRAINS_ACROSS * size), TUBE_RADIUS_MAX_M)
-    return radius, radius * 3.5 / 2.1
-
-
-def grains_to_fill(food: FoodSpec, physics: str, radius: float, height: float, packing: float = 0.6) -> int:
-    """Grain count that fills the tube about ``height`` high at a typical packing fraction."""
+def tube_size(food: FoodSpec, physics: str, scale: float = 1.0) -> tuple[float, float, int]:
+    """Tube radius and fill height (m) and the grains that fill it: the standard 2.1 cm by 3.5 cm, widened for
+    large grains (up to TUBE_RADIUS_MAX_M), narrowed to hold at most TUBE_GRAINS_MAX, all times ``scale``."""
     grain = food.grain(physics)
-    return max(20, int(math.pi * radius**2 * height * packing / grain.piece_volume_m3()))
+    radius = min(max(TUBE_RADIUS_M, TUBE_GRAINS_ACROSS * grain.size_range_m[1]), TUBE_RADIUS_MAX_M)
+
+    def grains(r: float) -> float:
+        return math.pi * r**2 * (r * 3.5 / 2.1) * FILL_PACKING_GUESS / grain.piece_volume_m3()
+
+    radius *= min(1.0, (TUBE_GRAINS_MAX / grains(radius)) ** (1 / 3)) * scale
+    return radius, radius * 3.5 / 2.1, max(20, int(grains(radius)))
 
 
 def _model_xml(pile: GrainPile, radius: float, option: dict, timestep: float) -> str:
@@ -123,8 +125,7 @@ def lifting_cylinder(
 
     Sleeping stays off: a grain asleep in the tube would not notice the wall leave.
     """
-    radius, fill = tube_size(food, physics, scale)
-    n = grains_to_fill(food, physics, radius, fill)
+    radius, _, n = tube_size(food, physics, scale)
     pile = GrainPile(food, n, np.random.default_rng(seed), physics=physics)
     option = {**PHYSICS_SOLVER_OPTIONS[physics], **(solver_options or {})}
     model = mujoco.MjModel.from_xml_string(_model_xml(pile, radius, option, PHYSICS_TIMESTEP_S))
