@@ -47,6 +47,9 @@ setup(
         "imageio>=2.30",
         "imageio-ffmpeg>=0.4.9",
         "matplotlib>=3.7",
+        # Diffusion Policy's noise schedulers and EMA (veragmil_suite.robomimic_algos), as robomimic 0.5 uses them;
+        # it needs huggingface-hub >= 1.32
+        "diffusers==0.42.1",
     ],
     extras_require={
         "test": ["pytest>=7", "pytest-xdist==3.8.0", "ruff>=0.5"],

@@ -29,7 +29,7 @@ def _run(command, *args, timeout=600, cwd=None):
     )
 
 
-@pytest.mark.parametrize("algo", ["bc", "bc_rnn", "bcq"])
+@pytest.mark.parametrize("algo", ["bc", "bc_rnn", "bcq", "diffusion_policy"])
 def test_training_config_shortens_our_config_and_changes_nothing_else(algo, tmp_path):
     with open(config_path(algo)) as f:
         stock = json.load(f)
@@ -49,7 +49,7 @@ def test_training_config_shortens_our_config_and_changes_nothing_else(algo, tmp_
 def test_bad_settings_name_the_accepted_values(tmp_path):
     with pytest.raises(ValueError, match="accepted foods"):
         PipelineSettings(output_dir=str(tmp_path), eval_foods=["rice", "lentils"])
-    with pytest.raises(ValueError, match=r"accepted: \['bc', 'bc_rnn', 'bcq'\]"):
+    with pytest.raises(ValueError, match=r"accepted: \['bc', 'bc_rnn', 'bcq', 'diffusion_policy'\]"):
         PipelineSettings(output_dir=str(tmp_path), algos=["diffusion"])
     with pytest.raises(ValueError, match="episodes must be a positive integer"):
         PipelineSettings(output_dir=str(tmp_path), episodes=0)

@@ -42,9 +42,9 @@ from veragmil_suite.distributed import Resources, ray_session, run_pieces
 from veragmil_suite.foods import FOODS, TRAINING_FOODS, UNSEEN_FOODS, get_food
 from veragmil_suite.rendering import use_headless_rendering
 
-# robomimic configs of configs/json per algorithm of the paper (low-dim observations)
-ALGO_CONFIGS = {"bc": "bc", "bc_rnn": "bc_rnn", "bcq": "bcq"}
-ALGO_LABELS = {"bc": "BC", "bc_rnn": "BC-RNN", "bcq": "BCQ"}
+# robomimic configs of configs/json per algorithm: the paper's three and Diffusion Policy (low-dim observations)
+ALGO_CONFIGS = {"bc": "bc", "bc_rnn": "bc_rnn", "bcq": "bcq", "diffusion_policy": "diffusion_policy"}
+ALGO_LABELS = {"bc": "BC", "bc_rnn": "BC-RNN", "bcq": "BCQ", "diffusion_policy": "Diffusion Policy"}
 
 # Seeds of recorded episodes and of evaluation episodes never meet: evaluation bowls are not training bowls.
 EVAL_SEED_OFFSET = 100_000

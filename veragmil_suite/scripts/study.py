@@ -2,8 +2,9 @@
 veragmil-study: the paper's grid end to end from scripted data.
 
 Two operator profiles (``expert``, smooth like the paper's VR operators, and ``spacemouse``, one axis at a time
-like its 3D-mouse operators) each record a dataset of the training foods; BC, BC-RNN and BCQ train on each; every
-checkpoint, and each scripted operator itself (the "Human" column's stand-in), is scored on all seven foods.
+like its 3D-mouse operators) each record a dataset of the training foods; BC, BC-RNN and BCQ (and Diffusion Policy,
+``--algos``) train on each; every checkpoint, and each scripted operator itself (the "Human" column's stand-in), is
+scored on all seven foods.
 Tables II and III (markdown, CSV, JSON), the stage table and a bar chart land in <output-dir>/eval.
 
 Run again with the same --output-dir, an interrupted or partial study resumes: recordings, trainings and
