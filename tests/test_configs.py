@@ -8,6 +8,7 @@ import pytest
 import robomimic
 
 from veragmil_suite import robomimic_compat, robomimic_obs
+from veragmil_suite.observation_sets import DEFAULT_OBSERVATION_SET, OBSERVATION_SETS
 
 CONFIG_DIR = Path(__file__).resolve().parents[1] / "configs" / "json"
 TEMPLATE_DIR = Path(robomimic.__file__).parent / "exps" / "templates"
@@ -69,6 +70,12 @@ def _differences(config):
 
 def test_the_planned_configs_exist():
     assert {"bc", "bc_rnn", "bcq", "bc_rnn_image", "diffusion_policy"} <= set(CONFIGS)
+
+
+@pytest.mark.parametrize("name", [n for n in CONFIGS if not _load(n)["observation"]["modalities"]["obs"]["rgb"]])
+def test_low_dim_configs_observe_the_default_observation_set(name):
+    low_dim = _load(name)["observation"]["modalities"]["obs"]["low_dim"]
+    assert tuple(low_dim) == OBSERVATION_SETS[DEFAULT_OBSERVATION_SET]
 
 
 @pytest.mark.parametrize("name", CONFIGS)
