@@ -1,13 +1,17 @@
 """
-Training throughput of robomimic's BC, BC-RNN and BCQ with our configs: gradient steps and samples per second.
+Training throughput of robomimic's BC, BC-RNN, BCQ and our Diffusion Policy with our configs: gradient steps and samples
+per second.
 
 Runs robomimic's own training epoch (data loading, batch processing, forward and backward pass) on a dataset of
 ScoopGranular episodes, with the configs' own batch sizes and networks, for 1 and 2 torch threads (robomimic's
 train.py uses 2; set VERAGMIL_TORCH_THREADS for veragmil-train). Without --dataset, a small random-action dataset
-(low-dim plus 84x84 overhead RGB-D) is recorded first.
+(low-dim plus 84x84 overhead RGB-D) is recorded first. Wall-clock rates hold only on an otherwise idle machine; the
+rate per CPU second (this process's CPU time, all its threads) stands for an idle core with 1 thread even when other
+jobs load the machine.
 
-    python scripts/bench_training.py                       # bc, bc_rnn, bcq, bc_image
+    python scripts/bench_training.py                       # bc, bc_rnn, bcq, bc_image, diffusion_policy
     python scripts/bench_training.py --algos bc_rnn_image --image-steps 2
+    python scripts/bench_training.py --algos diffusion_policy --diffusion-steps 5 --threads 1 2
 """
 
 from __future__ import annotations
@@ -61,10 +65,11 @@ def bench_algo(name: str, dataset: str, steps: int) -> dict:
     trainset, _ = train_utils.load_data_for_training(config, obs_keys=shape_meta["all_obs_keys"])
     loader = DataLoader(trainset, batch_size=config.train.batch_size, shuffle=True, drop_last=True)
     train_utils.run_epoch(model=model, data_loader=loader, epoch=1, num_steps=2)
-    start = time.perf_counter()
+    start, start_cpu = time.perf_counter(), time.process_time()
     log = train_utils.run_epoch(model=model, data_loader=loader, epoch=1, num_steps=steps)
-    elapsed = time.perf_counter() - start
-    batch, seq = config.train.batch_size, config.train.seq_length
+    elapsed, cpu = time.perf_counter() - start, time.process_time() - start_cpu
+    # a sample's steps: the sequence and the frames stacked before it (Diffusion Policy's observation history)
+    batch, seq = config.train.batch_size, config.train.frame_stack - 1 + config.train.seq_length
     # robomimic's own timers (minutes summed over the epoch): where an epoch's time goes
     parts = {part: log[f"Time_{part}"] * 60.0 for part in EPOCH_PARTS}
     return dict(
@@ -72,6 +77,7 @@ def bench_algo(name: str, dataset: str, steps: int) -> dict:
         batch=batch,
         seq=seq,
         steps_per_s=steps / elapsed,
+        steps_per_cpu_s=steps / cpu,
         samples_per_s=steps * batch / elapsed,
         frames_per_s=steps * batch * seq / elapsed,
         shares={part: seconds / elapsed for part, seconds in parts.items()},
@@ -80,10 +86,18 @@ def bench_algo(name: str, dataset: str, steps: int) -> dict:
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--algos", nargs="+", default=["bc", "bc_rnn", "bcq", "bc_image"], help="configs/json names")
+    parser.add_argument(
+        "--algos",
+        nargs="+",
+        default=["bc", "bc_rnn", "bcq", "bc_image", "diffusion_policy"],
+        help="configs/json names",
+    )
     parser.add_argument("--dataset", default=None, help="robomimic HDF5 with the configs' observation keys")
     parser.add_argument("--steps", type=int, default=30, help="timed gradient steps, low-dim configs")
     parser.add_argument("--image-steps", type=int, default=3, help="timed gradient steps, image configs")
+    parser.add_argument(
+        "--diffusion-steps", type=int, default=3, help="timed gradient steps, Diffusion Policy (a 66M-weight U-Net)"
+    )
     parser.add_argument(
         "--threads", type=int, nargs="+", default=[1, 2], help="torch thread counts (robomimic's train.py uses 2)"
     )
@@ -109,6 +123,7 @@ def main(argv: list[str] | None = None) -> None:
     rows = []
     for name in args.algos:
         steps = args.image_steps if "image" in name or "rgbd" in name else args.steps
+        steps = args.diffusion_steps if name.startswith("diffusion_policy") else steps
         for threads in args.threads:
             torch.set_num_threads(threads)
             rows.append(dict(bench_algo(name, dataset, steps), threads=threads))
@@ -119,12 +134,15 @@ def main(argv: list[str] | None = None) -> None:
         f"{os.getloadavg()[0]:.1f}), robomimic {_version('robomimic')}"
     )
     parts = " | ".join(f"% {p.lower().replace('_', ' ')}" for p in EPOCH_PARTS)
-    print(f"| config | torch threads | batch | seq | gradient steps/s | samples/s | frames/s | {parts} |")
-    print("|---|---|---|---|---|---|---|" + "---|" * len(EPOCH_PARTS))
+    print(
+        f"| config | torch threads | batch | seq | gradient steps/s | per CPU second | samples/s | frames/s | {parts} |"
+    )
+    print("|---|---|---|---|---|---|---|---|" + "---|" * len(EPOCH_PARTS))
     for r in rows:
         shares = " | ".join(f"{100 * r['shares'][p]:.0f}" for p in EPOCH_PARTS)
         print(
             f"| {r['config']} | {r['threads']} | {r['batch']} | {r['seq']} | {r['steps_per_s']:.2f} | "
+            f"{r['steps_per_cpu_s']:.2f} | "
             f"{r['samples_per_s']:.0f} | {r['frames_per_s']:.0f} | {shares} |"
         )
 

@@ -1,4 +1,5 @@
-"""Our robomimic configs are robomimic's stock templates with only the settings our data needs changed."""
+"""Our robomimic configs are robomimic's stock templates with only the settings our data needs changed; the templates of
+our own algorithms are their config classes' defaults (as robomimic's generate_config_templates.py writes them)."""
 
 import json
 from pathlib import Path
@@ -7,6 +8,7 @@ import pytest
 import robomimic
 
 from veragmil_suite import robomimic_compat, robomimic_obs
+from veragmil_suite.observation_sets import DEFAULT_OBSERVATION_SET, OBSERVATION_SETS
 
 CONFIG_DIR = Path(__file__).resolve().parents[1] / "configs" / "json"
 TEMPLATE_DIR = Path(robomimic.__file__).parent / "exps" / "templates"
@@ -25,6 +27,14 @@ ALLOWED = (
 )
 # recurrent policies: robomimic's BC-RNN is its BC template with the RNN switched on over a sequence
 ALLOWED_RNN = ("train.seq_length", "algo.rnn.enabled", "algo.rnn.horizon")
+# Diffusion Policy: windows of its horizons, no next observations, DDIM instead of DDPM (configs/README.md)
+ALLOWED_DIFFUSION = (
+    "train.frame_stack",
+    "train.seq_length",
+    "train.hdf5_load_next_obs",
+    "algo.ddpm.enabled",
+    "algo.ddim.enabled",
+)
 
 CONFIGS = sorted(p.stem for p in CONFIG_DIR.glob("*.json"))
 
@@ -43,21 +53,36 @@ def _load(name):
         return json.load(f)
 
 
+def _template(algo_name):
+    path = TEMPLATE_DIR / f"{algo_name}.json"
+    if path.exists():
+        return json.loads(path.read_text())
+    from robomimic.config import config_factory
+
+    return json.loads(config_factory(algo_name).dump())
+
+
 def _differences(config):
-    with open(TEMPLATE_DIR / f"{config['algo_name']}.json") as f:
-        template = _flatten(json.load(f))
+    template = _flatten(_template(config["algo_name"]))
     ours = _flatten(config)
     return {k for k in template.keys() | ours.keys() if template.get(k, KeyError) != ours.get(k, KeyError)}
 
 
 def test_the_planned_configs_exist():
-    assert {"bc", "bc_rnn", "bcq", "bc_rnn_image"} <= set(CONFIGS)
+    assert {"bc", "bc_rnn", "bcq", "bc_rnn_image", "diffusion_policy"} <= set(CONFIGS)
+
+
+@pytest.mark.parametrize("name", [n for n in CONFIGS if not _load(n)["observation"]["modalities"]["obs"]["rgb"]])
+def test_low_dim_configs_observe_the_default_observation_set(name):
+    low_dim = _load(name)["observation"]["modalities"]["obs"]["low_dim"]
+    assert tuple(low_dim) == OBSERVATION_SETS[DEFAULT_OBSERVATION_SET]
 
 
 @pytest.mark.parametrize("name", CONFIGS)
 def test_config_differs_from_its_template_only_where_allowed(name):
     config = _load(name)
     allowed = ALLOWED + (ALLOWED_RNN if config["algo"].get("rnn", {}).get("enabled") else ())
+    allowed += ALLOWED_DIFFUSION if config["algo_name"] == "diffusion_policy" else ()
     differences = _differences(config)
     assert differences, "a config identical to its template sets no dataset or observations"
     unexpected = sorted(
@@ -83,6 +108,10 @@ def test_config_loads_into_robomimic(name):
         config.update(ours)  # robomimic raises on a key its config does not define
     if config.algo_name == "bc" and config.algo.rnn.enabled:
         assert config.train.seq_length == config.algo.rnn.horizon > 1
+    if config.algo_name == "diffusion_policy":
+        horizon = config.algo.horizon
+        assert config.train.frame_stack == horizon.observation_horizon
+        assert config.train.frame_stack - 1 + config.train.seq_length == horizon.prediction_horizon
     assert config.experiment.rollout.horizon == 400  # 20 s at 20 Hz, longer than the paper's 14-19 s demos
 
 

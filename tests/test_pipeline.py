@@ -31,7 +31,7 @@ def _run(command, *args, timeout=600, cwd=None):
     )
 
 
-@pytest.mark.parametrize("algo", ["bc", "bc_rnn", "bcq"])
+@pytest.mark.parametrize("algo", ["bc", "bc_rnn", "bcq", "diffusion_policy"])
 def test_training_config_shortens_our_config_and_changes_nothing_else(algo, tmp_path):
     with open(config_path(algo)) as f:
         stock = json.load(f)
@@ -51,7 +51,7 @@ def test_training_config_shortens_our_config_and_changes_nothing_else(algo, tmp_
 def test_bad_settings_name_the_accepted_values(tmp_path):
     with pytest.raises(ValueError, match="accepted foods"):
         PipelineSettings(output_dir=str(tmp_path), eval_foods=["rice", "lentils"])
-    with pytest.raises(ValueError, match=r"accepted: \['bc', 'bc_rnn', 'bcq'\]"):
+    with pytest.raises(ValueError, match=r"accepted: \['bc', 'bc_rnn', 'bcq', 'diffusion_policy'\]"):
         PipelineSettings(output_dir=str(tmp_path), algos=["diffusion"])
     with pytest.raises(ValueError, match="episodes must be a positive integer"):
         PipelineSettings(output_dir=str(tmp_path), episodes=0)
@@ -63,8 +63,8 @@ def test_bad_settings_name_the_accepted_values(tmp_path):
         PipelineSettings(output_dir=str(tmp_path), demos_per_food=[0, 3])
     with pytest.raises(ValueError, match="checkpoint 'nowhere.pth' not found"):
         PipelineSettings(output_dir=str(tmp_path), agents={"old": "nowhere.pth"})
-    with pytest.raises(ValueError, match="agent name 'expert BC' is taken by one of this run's own"):
-        PipelineSettings(output_dir=str(tmp_path), agents={"expert BC": "expert:careful"})
+    with pytest.raises(ValueError, match="agent name 'expert BC object obs' is taken by one of this run's own"):
+        PipelineSettings(output_dir=str(tmp_path), agents={"expert BC object obs": "expert:careful"})
     assert PipelineSettings(output_dir=str(tmp_path), agents={"careful": "expert:careful"}).agents
     result = _run("veragmil-study", "--output-dir", tmp_path / "s", "--algos", "gail", timeout=60)
     assert result.returncode == 2 and "invalid choice: 'gail'" in result.stderr
@@ -82,24 +82,42 @@ def test_no_operators_leaves_the_scripted_operators_out_of_the_study():
     add_pipeline_arguments(parser, PipelineSettings(output_dir="runs/study"))
     argv = ["--output-dir", "runs/x", "--profiles", "expert", "expert-dart", "--algos", "bc"]
     assert settings_from_args(parser.parse_args(argv)).own_agents() == [
-        "expert operator", "expert-dart operator", "expert BC", "expert-dart BC"
+        "expert operator", "expert-dart operator", "expert BC object obs", "expert-dart BC object obs"
     ]  # fmt: skip
     without = settings_from_args(parser.parse_args([*argv, "--no-operators"]))
-    assert without.own_agents() == ["expert BC", "expert-dart BC"]
+    assert without.own_agents() == ["expert BC object obs", "expert-dart BC object obs"]
 
 
 def test_training_seeds_name_their_runs_and_columns_and_the_default_seed_keeps_its_old_name(tmp_path):
     grid = dict(output_dir=str(tmp_path), algos=["bc", "bcq"], seed=0)
     one = PipelineSettings(**grid)
     assert one.train_seeds == [1] and one.run_name("expert", "bc", 30, 1) == "expert_bc_30demos_2000steps"
-    assert one.own_agents() == ["expert operator", "expert BC", "expert BCQ"]
+    assert one.own_agents() == ["expert operator", "expert BC object obs", "expert BCQ object obs"]
     three = PipelineSettings(**grid, train_seeds=[1, 2, 3, 2], score_demonstrators=False)
     assert three.train_seeds == [1, 2, 3]
     assert three.run_name("expert", "bcq", 30, 3) == "expert_bcq_30demos_2000steps_seed3"
-    assert three.own_agents() == [f"expert {a} seed {s}" for a in ("BC", "BCQ") for s in (1, 2, 3)]
-    assert three.model_label("expert", "bc", 30, 2000) == "expert BC"  # the recipe, all its seeds
+    assert three.own_agents() == [f"expert {a} object obs seed {s}" for a in ("BC", "BCQ") for s in (1, 2, 3)]
+    assert three.model_label("expert", "bc", 30, 2000) == "expert BC object obs"  # the recipe, all its seeds
     with pytest.raises(ValueError, match=r"train_seeds must be integers >= 0 .* got \[-1\]"):
         PipelineSettings(**grid, train_seeds=[-1])
+
+
+def test_observation_sets_name_their_runs_and_columns_and_the_default_set_keeps_its_old_run_name(tmp_path):
+    from veragmil_suite.observation_sets import OBSERVATION_SETS
+
+    grid = dict(output_dir=str(tmp_path), algos=["bc", "diffusion_policy"], seed=0, score_demonstrators=False)
+    both = PipelineSettings(**grid, obs_sets=["object", "no-load", "object"])
+    assert both.obs_sets == ["object", "no-load"]
+    assert both.own_agents() == [
+        "expert BC object obs", "expert BC no-load obs",
+        "expert Diffusion Policy object obs", "expert Diffusion Policy no-load obs",
+    ]  # fmt: skip
+    assert both.run_name("expert", "bc", 30, 1, "object") == "expert_bc_30demos_2000steps"
+    assert both.run_name("expert", "bc", 30, 2, "no-load") == "expert_bc_30demos_2000steps_obs-no-load_seed2"
+    config = training_config("bc", tmp_path / "d.hdf5", tmp_path / "runs", "x", 1, 1, obs_set="no-load")
+    assert config["observation"]["modalities"]["obs"]["low_dim"] == list(OBSERVATION_SETS["no-load"])
+    with pytest.raises(ValueError, match=r"unknown observation set 'counts'; accepted: \['no-load', 'object'\]"):
+        PipelineSettings(**grid, obs_sets=["counts"])
 
 
 def test_the_seed_table_gives_each_seeds_rate_and_their_mean_and_range():
@@ -143,15 +161,22 @@ def test_an_algorithm_with_its_own_budget_is_evaluated_at_its_end_and_at_the_swe
     assert [settings.total_steps_of(a) for a in ("bc", "bc_rnn", "bcq")] == [50000, 20000, 50000]
     assert settings.steps_of("bc") == [50000] and settings.steps_of("bc_rnn") == [20000]
     assert settings.own_agents() == [
-        "expert operator", "expert BC 50k steps", "expert BC-RNN 20k steps", "expert BCQ 50k steps"
+        "expert operator", "expert BC object obs 50k steps", "expert BC-RNN object obs 20k steps",
+        "expert BCQ object obs 50k steps",
     ]  # fmt: skip
     curve = PipelineSettings(**grid, algo_epochs={"bc_rnn": 40}, eval_steps=[10000, 50000])
     assert curve.steps_of("bc") == [10000, 50000] and curve.steps_of("bc_rnn") == [10000, 20000]
-    assert PipelineSettings(**grid).own_agents() == ["expert operator", "expert BC", "expert BC-RNN", "expert BCQ"]
+    assert PipelineSettings(**grid).own_agents() == [
+        "expert operator",
+        "expert BC object obs",
+        "expert BC-RNN object obs",
+        "expert BCQ object obs",
+    ]
     longer = PipelineSettings(**grid, algo_epochs={"bcq": 200})  # more than epochs: its own end only
     assert longer.steps_of("bcq") == [100000] and longer.steps_of("bc") == [50000]
     assert longer.own_agents() == [
-        "expert operator", "expert BC 50k steps", "expert BC-RNN 50k steps", "expert BCQ 100k steps"
+        "expert operator", "expert BC object obs 50k steps", "expert BC-RNN object obs 50k steps",
+        "expert BCQ object obs 100k steps",
     ]  # fmt: skip
     with pytest.raises(ValueError, match=r"algo_epochs names unknown algorithm\(s\) \['gail'\]; accepted"):
         PipelineSettings(**grid, algo_epochs={"gail": 3})
@@ -176,11 +201,15 @@ def test_quickstart_end_to_end_records_trains_evaluates_and_prints_the_tables(tm
     (checkpoint,) = (out / "runs").glob("expert_bc_1demos_10steps/*/models/model_epoch_2.pth")
     summary = json.loads((out / "eval" / "results.json").read_text())
     agents = {e["agent"] for e in summary["episodes"]}
-    assert agents == {"expert BC", "expert operator", "pretrained DART BC 50k"}  # the shipped checkpoint beside
+    assert agents == {
+        "expert BC object obs",
+        "expert operator",
+        "pretrained DART BC 50k",
+    }  # the shipped checkpoint beside
     assert {(e["agent"], e["food"]) for e in summary["episodes"]} == {(a, f) for a in agents for f in ("pasta", "peas")}
     for name in ("table.md", "table.csv", "episodes.csv", "success.png"):
         assert (out / "eval" / name).stat().st_size > 0
-    assert "expert BC" in result.stdout and "peas" in result.stdout and "pasta" in result.stdout
+    assert "expert BC object obs" in result.stdout and "peas" in result.stdout and "pasta" in result.stdout
     stages = (out / "eval" / "stages.md").read_text()
     assert "| expert operator | pasta | 1 | 0 | 0 | 0 | 0 | 0 | 1 |" in stages  # the expert held its scoop
     # its stages, a progress bar for each, the tables, and nothing else
@@ -233,10 +262,10 @@ def test_a_killed_study_resumes_and_skips_every_finished_piece(tmp_path):
     agents = {e["agent"] for e in results["episodes"]}
     assert agents == {
         "expert operator",
-        "expert BC 1 demos 5 steps",
-        "expert BC 1 demos 10 steps",
-        "expert BC 2 demos 5 steps",
-        "expert BC 2 demos 10 steps",
+        "expert BC object obs 1 demos 5 steps",
+        "expert BC object obs 1 demos 10 steps",
+        "expert BC object obs 2 demos 5 steps",
+        "expert BC object obs 2 demos 10 steps",
     }
     # every (agent, food, episode) exactly once: 5 agents x 1 food x 1 episode
     keys = [(e["agent"], e["food"], e["episode"]) for e in results["episodes"]]
@@ -273,11 +302,11 @@ def test_a_killed_study_resumes_and_skips_every_finished_piece(tmp_path):
     with open(out / "eval" / "seeds.csv") as f:
         spread = {r["train_seed"]: float(r["seen success %"]) for r in csv.DictReader(f)}
     assert spread["mean"] == (spread["1"] + spread["2"]) / 2 and spread["lowest"] == min(spread["1"], spread["2"])
-    assert "| expert BC | 1, 2 |" in (out / "eval" / "seeds.md").read_text()
+    assert "| expert BC object obs | 1, 2 |" in (out / "eval" / "seeds.md").read_text()
     # one demo count and no sweep: the learning curves of the runs before would describe other agents
     assert not (out / "eval" / "curves.csv").exists() and not (out / "eval" / "curves.png").exists()
     pooled = json.loads((out / "eval" / "seeds" / "results.json").read_text())
-    assert [(s["agent"], s["episodes"]) for s in pooled["summary"]] == [("expert BC", 2)]
+    assert [(s["agent"], s["episodes"]) for s in pooled["summary"]] == [("expert BC object obs", 2)]
     # back to one seed: the seed tables of the run before would describe agents this run's table does not hold
     one = _run("veragmil-study", *seeds, "--no-operators")
     assert one.returncode == 0 and "; 0 to run" in one.stdout

@@ -2,7 +2,8 @@
 
 Importing the package registers the ScoopGranular environment (robosuite registers every environment class
 when it is defined), the SpoonGripper (gripper_types="SpoonGripper") and the Gymnasium id
-"veragmil/ScoopGranular-v0" (veragmil_suite.gym_env).
+"veragmil/ScoopGranular-v0" (veragmil_suite.gym_env), and our robomimic algorithms (algo_name "diffusion_policy")
+as soon as robomimic is imported (veragmil_suite.robomimic_algos).
 """
 
 import os
@@ -24,8 +25,10 @@ from veragmil_suite.environments.scoop import ScoopGranular  # noqa: E402
 from veragmil_suite.foods import FOODS, TRAINING_FOODS, UNSEEN_FOODS, FoodSpec, get_food, register_food  # noqa: E402
 from veragmil_suite.gym_env import GYM_ENV_ID, ScoopGranularGymEnv, register_gym_env  # noqa: E402
 from veragmil_suite.models.spoon_gripper import SpoonGripper  # noqa: E402
+from veragmil_suite.robomimic_algos import register_on_import  # noqa: E402
 
 register_gym_env()
+register_on_import()
 
 __all__ = [
     "FOODS",

@@ -41,11 +41,12 @@ import numpy as np
 from veragmil_suite.asset_paths import config_path
 from veragmil_suite.distributed import Resources, ray_session, run_pieces
 from veragmil_suite.foods import FOODS, TRAINING_FOODS, UNSEEN_FOODS, get_food, with_recorded_physics
+from veragmil_suite.observation_sets import DEFAULT_OBSERVATION_SET, check_observation_set, with_observation_set
 from veragmil_suite.rendering import use_headless_rendering
 
-# robomimic configs of configs/json per algorithm of the paper (low-dim observations)
-ALGO_CONFIGS = {"bc": "bc", "bc_rnn": "bc_rnn", "bcq": "bcq"}
-ALGO_LABELS = {"bc": "BC", "bc_rnn": "BC-RNN", "bcq": "BCQ"}
+# robomimic configs of configs/json per algorithm: the paper's three and Diffusion Policy (low-dim observations)
+ALGO_CONFIGS = {"bc": "bc", "bc_rnn": "bc_rnn", "bcq": "bcq", "diffusion_policy": "diffusion_policy"}
+ALGO_LABELS = {"bc": "BC", "bc_rnn": "BC-RNN", "bcq": "BCQ", "diffusion_policy": "Diffusion Policy"}
 
 # Seeds of recorded episodes and of evaluation episodes never meet: evaluation bowls are not training bowls.
 EVAL_SEED_OFFSET = 100_000
@@ -77,6 +78,8 @@ class PipelineSettings:
     bowls: a pretrained checkpoint, another operator profile, a recorded dataset.
     ``train_seeds`` (default: ``seed + 1`` alone) trains each model once per seed, on the same data: the spread
     between training seeds of one recipe is as large as the differences between recipes, so comparisons need it.
+    ``obs_sets`` (veragmil_suite.observation_sets) trains each model once per observation set, on the same data;
+    every model's column names its set.
     """
 
     output_dir: str
@@ -97,6 +100,7 @@ class PipelineSettings:
     robot: str = "XArm7"  # records, trains and evaluates with this robot (veragmil_suite.humanoid: the G1)
     score_demonstrators: bool = True
     train_seeds: list[int] | None = None
+    obs_sets: list[str] = field(default_factory=lambda: [DEFAULT_OBSERVATION_SET])
     agents: dict[str, str] = field(default_factory=dict)
     ray: str | None = None  # None: local processes; else a Ray cluster's address (distributed.THIS_MACHINE: here)
 
@@ -141,6 +145,11 @@ class PipelineSettings:
         self.train_seeds = list(dict.fromkeys(int(s) for s in self.train_seeds or [self.seed + 1]))
         if any(s < 0 for s in self.train_seeds):
             raise ValueError(f"train_seeds must be integers >= 0 (torch's seeds), got {self.train_seeds!r}")
+        if isinstance(self.obs_sets, str):
+            self.obs_sets = [self.obs_sets]
+        self.obs_sets = list(dict.fromkeys(check_observation_set(name) for name in self.obs_sets))
+        if not self.obs_sets:
+            raise ValueError("obs_sets must name at least one observation set")
         from veragmil_suite.evaluation import parse_spec
 
         own = set(self.own_agents())
@@ -171,20 +180,30 @@ class PipelineSettings:
         return len({k for algo in self.algos for k in self.steps_of(algo)}) > 1
 
     def model_label(
-        self, profile: str, algo: str, demos_per_food: int, steps: int, train_seed: int | None = None
+        self,
+        profile: str,
+        algo: str,
+        demos_per_food: int,
+        steps: int,
+        train_seed: int | None = None,
+        obs_set: str = DEFAULT_OBSERVATION_SET,
     ) -> str:
-        """A trained checkpoint's column: profile and algorithm, plus demos and steps when the run sweeps them
-        (or its algorithms train for different budgets), plus the training seed when there are several (without
-        ``train_seed``: the recipe's label, which names all its seeds)."""
-        label = f"{profile} {ALGO_LABELS[algo]}"
+        """A trained checkpoint's column: profile, algorithm and observation set, plus demos and steps when the run
+        sweeps them (or its algorithms train for different budgets), plus the training seed when there are several
+        (without ``train_seed``: the recipe's label, which names all its seeds)."""
+        label = f"{profile} {ALGO_LABELS[algo]} {obs_set} obs"
         label += f" {demos_per_food} demos" if len(self.demos_per_food) > 1 else ""
         label += f" {_steps_label(steps)} steps" if self.sweeps_steps else ""
         label += f" seed {train_seed}" if train_seed is not None and len(self.train_seeds) > 1 else ""
         return label
 
-    def run_name(self, profile: str, algo: str, demos_per_food: int, train_seed: int) -> str:
-        """A training run's folder; the default seed's has no suffix, so studies from before seeds resume."""
+    def run_name(
+        self, profile: str, algo: str, demos_per_food: int, train_seed: int, obs_set: str = DEFAULT_OBSERVATION_SET
+    ) -> str:
+        """A training run's folder; the default seed's and observation set's have no suffix, so studies from before
+        seeds and observation sets resume."""
         name = f"{profile}_{algo}_{demos_per_food}demos_{self.total_steps_of(algo)}steps"
+        name += f"_obs-{obs_set}" if obs_set != DEFAULT_OBSERVATION_SET else ""
         return name if train_seed == self.seed + 1 else f"{name}_seed{train_seed}"
 
     def own_agents(self) -> list[str]:
@@ -192,8 +211,9 @@ class PipelineSettings:
         names = [f"{p} operator" for p in self.profiles] if self.score_demonstrators else []
         for profile in self.profiles:
             names += [
-                self.model_label(profile, algo, n, k, s)
+                self.model_label(profile, algo, n, k, s, obs)
                 for algo in self.algos
+                for obs in self.obs_sets
                 for n in self.demos_per_food
                 for s in self.train_seeds
                 for k in self.steps_of(algo)
@@ -529,9 +549,11 @@ def training_config(
     seed: int = 1,
     filter_key: str | None = None,
     save_epochs: list[int] | None = None,
+    obs_set: str | None = None,
 ) -> dict:
     """Our stock config of ``algo`` (configs/json) shortened to ``epochs`` x ``steps_per_epoch`` gradient steps,
-    trained on the demos of ``filter_key`` (all when None).
+    trained on the demos of ``filter_key`` (all when None), with the low-dim observations of ``obs_set``
+    (veragmil_suite.observation_sets; None: the config's own).
 
     Rollouts during training are off (the evaluation scores checkpoints on every food afterwards); the last epoch
     and ``save_epochs`` are saved.
@@ -547,7 +569,7 @@ def training_config(
     experiment["save"]["epochs"] = sorted(set(save_epochs or []) - {epochs})
     config["train"].update(data=str(dataset), output_dir=str(output_dir), num_epochs=epochs, seed=seed)
     config["train"]["hdf5_filter_key"] = filter_key
-    return config
+    return with_observation_set(config, obs_set) if obs_set is not None else config
 
 
 def _checkpoints(config: dict) -> dict[int, Path]:
@@ -659,26 +681,29 @@ def _steps_label(steps: int) -> str:
 
 
 def training_runs(settings: PipelineSettings) -> list[dict]:
-    """Every training run of the grid, in its order: profile, algorithm, demos per food, training seed and config."""
+    """Every training run of the grid, in its order: profile, algorithm, observation set, demos per food, training
+    seed and config."""
     out = Path(settings.output_dir)
     runs = []
     for profile in settings.profiles:
         for algo in settings.algos:
-            for n in settings.demos_per_food:
-                for train_seed in settings.train_seeds:
-                    config = training_config(
-                        algo,
-                        out / "data" / f"{profile}.hdf5",
-                        out / "runs",
-                        settings.run_name(profile, algo, n, train_seed),
-                        settings.epochs_of(algo),
-                        settings.steps_per_epoch,
-                        seed=train_seed,
-                        filter_key=demo_mask(n),
-                        save_epochs=[k // settings.steps_per_epoch for k in settings.steps_of(algo)],
-                    )
-                    run = dict(profile=profile, algo=algo, demos_per_food=n, train_seed=train_seed, config=config)
-                    runs.append(run)
+            for obs in settings.obs_sets:
+                for n in settings.demos_per_food:
+                    for train_seed in settings.train_seeds:
+                        config = training_config(
+                            algo,
+                            out / "data" / f"{profile}.hdf5",
+                            out / "runs",
+                            settings.run_name(profile, algo, n, train_seed, obs),
+                            settings.epochs_of(algo),
+                            settings.steps_per_epoch,
+                            seed=train_seed,
+                            filter_key=demo_mask(n),
+                            save_epochs=[k // settings.steps_per_epoch for k in settings.steps_of(algo)],
+                            obs_set=obs,
+                        )
+                        run = dict(profile=profile, algo=algo, obs_set=obs, demos_per_food=n, train_seed=train_seed)
+                        runs.append(dict(run, config=config))
     return runs
 
 
@@ -772,13 +797,13 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True, verbose: boo
                 agents[f"{profile} operator"] = f"expert:{profile}"
             for run in (r for r in runs if r["profile"] == profile):
                 saved = checkpoints[run["config"]["experiment"]["name"]]
-                algo, n, train_seed = run["algo"], run["demos_per_food"], run["train_seed"]
+                algo, obs, n, train_seed = run["algo"], run["obs_set"], run["demos_per_food"], run["train_seed"]
                 for k in settings.steps_of(algo):
-                    label = settings.model_label(profile, algo, n, k, train_seed)
+                    label = settings.model_label(profile, algo, n, k, train_seed, obs)
                     agents[label] = str(saved[k // settings.steps_per_epoch])
-                    recipe = settings.model_label(profile, algo, n, k)
-                    points.append(dict(agent=label, recipe=recipe, profile=profile, algo=algo, demos_per_food=n,
-                                       steps=k, train_seed=train_seed))  # fmt: skip
+                    recipe = settings.model_label(profile, algo, n, k, obs_set=obs)
+                    points.append(dict(agent=label, recipe=recipe, profile=profile, algo=algo, obs_set=obs,
+                                       demos_per_food=n, steps=k, train_seed=train_seed))  # fmt: skip
         agents.update(settings.agents)
         say(f"evaluating {len(agents)} agents x {settings.episodes} episodes on {settings.eval_foods}")
         env_kwargs = {"n_grains": settings.n_grains} if settings.n_grains is not None else None
@@ -859,7 +884,7 @@ def _train_runs(
         for run in todo:
             steps = f"{run['config']['train']['num_epochs']} x {settings.steps_per_epoch}"
             dataset = Path(run["config"]["train"]["data"]).name
-            label = ALGO_LABELS[run["algo"]]
+            label = f"{ALGO_LABELS[run['algo']]} ({run['obs_set']} obs)"
             say(f"training {label} on {run['demos_per_food']} demos per food of {dataset} ({steps} gradient steps)")
             yield run["config"]
 
@@ -926,7 +951,8 @@ def write_learning_curves(result, points: list[dict], out_dir: Path) -> None:
     fig, axes = plt.subplots(1, len(axes_of), figsize=(5.5 * len(axes_of), 3.8), squeeze=False)
     several_seeds = len({r["train_seed"] for r in rows}) > 1
     for ax, (x_key, x_label, line_key, line_label) in zip(axes[0], axes_of):
-        for (profile, algo, line, seed), group in _groups_by(rows, ("profile", "algo", line_key, "train_seed")).items():
+        by_line = _groups_by(rows, ("profile", "algo", "obs_set", line_key, "train_seed"))
+        for (profile, algo, obs, line, seed), group in by_line.items():
             group = sorted(group, key=lambda r: r[x_key])
             x = [r[x_key] for r in group]
             for key, style in (("seen", "-o"), ("unseen", "--s")):
@@ -935,7 +961,7 @@ def write_learning_curves(result, points: list[dict], out_dir: Path) -> None:
                 y = np.array([r[f"{key} success %"] for r in group])
                 err = np.array([[y_ - r[f"{key} ci95 low"], r[f"{key} ci95 high"] - y_] for y_, r in zip(y, group)]).T
                 seed_label = f", seed {seed}" if several_seeds else ""
-                name = f"{profile} {ALGO_LABELS[algo]}, {line} {line_label}{seed_label}, {key}"
+                name = f"{profile} {ALGO_LABELS[algo]} {obs} obs, {line} {line_label}{seed_label}, {key}"
                 ax.errorbar(x, y, yerr=err, fmt=style, capsize=3, label=name)
         ax.set_xscale("log")
         ax.minorticks_off()

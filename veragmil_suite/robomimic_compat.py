@@ -68,6 +68,11 @@ robomimic's train.py:
       entry point exits non-zero.
     - robomimic's scripts cannot see a plugin environment (no import hook): importing this module imports the
       veragmil_suite package first, which registers ScoopGranular, and the entry points run the scripts here.
+
+robomimic's run_trained_agent.py:
+    - its rollout asserted an EnvBase, while env_from_checkpoint wraps the env of a frame-stacking policy
+      (train.frame_stack > 1, e.g. Diffusion Policy) in a FrameStackWrapper, which is none (robomimic's train loop
+      accepts either): robomimic's EnvWrapper is registered as a virtual subclass of EnvBase.
 """
 
 from __future__ import annotations
@@ -117,7 +122,9 @@ def install() -> None:
     robomimic_obs.remember_sim_xml()
 
     from robomimic.algo.algo import Algo
+    from robomimic.envs.env_base import EnvBase
     from robomimic.envs.env_robosuite import EnvRobosuite
+    from robomimic.envs.wrappers import EnvWrapper
     from robomimic.utils import env_utils, file_utils, obs_utils, train_utils
 
     env_utils.create_env_from_metadata = _create_env_from_metadata(env_utils.create_env_from_metadata)
@@ -133,6 +140,7 @@ def install() -> None:
     train_utils.get_exp_dir = experiment_dirs
     obs_utils.normalize_obs = normalize_obs
     Algo.postprocess_batch_for_training = _postprocess_without_normalizing(Algo.postprocess_batch_for_training)
+    EnvBase.register(EnvWrapper)
     _installed = True
 
 

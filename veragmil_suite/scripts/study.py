@@ -2,8 +2,9 @@
 veragmil-study: the paper's grid end to end from scripted data.
 
 Two operator profiles (``expert``, smooth like the paper's VR operators, and ``spacemouse``, one axis at a time
-like its 3D-mouse operators) each record a dataset of the training foods; BC, BC-RNN and BCQ train on each; every
-checkpoint, and each scripted operator itself (the "Human" column's stand-in), is scored on all seven foods.
+like its 3D-mouse operators) each record a dataset of the training foods; BC, BC-RNN and BCQ (and Diffusion Policy,
+``--algos``) train on each, with the observations of each ``--obs-sets``; every checkpoint, and each scripted operator
+itself (the "Human" column's stand-in), is scored on all seven foods.
 Tables II and III (markdown, CSV, JSON), the stage table and a bar chart land in <output-dir>/eval.
 
 Run again with the same --output-dir, an interrupted or partial study resumes: recordings, trainings and
@@ -13,6 +14,7 @@ the pieces run as Ray tasks, on this machine or spread over a cluster's nodes (R
     veragmil-study                                   # small default: minutes per model on 2 cores
     veragmil-study --demos-per-food 30 --epochs 2000 --episodes 50    # the paper's sizes (see the README)
     veragmil-study --demos-per-food 30 --epochs 100 --steps-per-epoch 500 --train-seeds 1 2 3   # mean over 3 seeds
+    veragmil-study --algos bc diffusion_policy --obs-sets object no-load   # with and without grain counts
     veragmil-study --demos-per-food 30 --epochs 2000 --episodes 50 --ray HEAD:6379 --output-dir /shared/study
 """
 
@@ -26,6 +28,7 @@ import time
 from veragmil_suite.distributed import add_ray_argument, check_ray_argument
 from veragmil_suite.evaluation import SPEC_HELP, parse_agent_argument
 from veragmil_suite.foods import FOODS, TRAINING_FOODS, UNSEEN_FOODS
+from veragmil_suite.observation_sets import OBSERVATION_SETS
 from veragmil_suite.pipeline import ALGO_CONFIGS, PipelineSettings, StageError, run_pipeline
 from veragmil_suite.scripts.cli import positive_int
 
@@ -42,6 +45,14 @@ def add_pipeline_arguments(p: argparse.ArgumentParser, defaults: PipelineSetting
     p.set_defaults(output_base=defaults.output_dir, default_agents=defaults.agents)
     p.add_argument("--profiles", nargs="+", choices=sorted(PROFILES), default=defaults.profiles)
     p.add_argument("--algos", nargs="+", choices=sorted(ALGO_CONFIGS), default=defaults.algos)
+    p.add_argument(
+        "--obs-sets",
+        nargs="+",
+        choices=sorted(OBSERVATION_SETS),
+        default=defaults.obs_sets,
+        help="train each model once per low-dim observation set, named in its column (veragmil_suite."
+        "observation_sets): object holds grain counts, no-load what a real robot could observe",
+    )
     p.add_argument("--train-foods", nargs="+", choices=sorted(FOODS), default=defaults.train_foods)
     p.add_argument("--eval-foods", nargs="+", choices=sorted(FOODS), default=defaults.eval_foods)
     p.add_argument(
@@ -125,6 +136,7 @@ def settings_from_args(args: argparse.Namespace) -> PipelineSettings:
         output_dir=getattr(args, "output_dir", None) or os.path.join(args.output_base, time.strftime("%Y%m%d-%H%M%S")),
         profiles=args.profiles,
         algos=args.algos,
+        obs_sets=args.obs_sets,
         train_foods=args.train_foods,
         eval_foods=args.eval_foods,
         demos_per_food=args.demos_per_food,

@@ -1,0 +1,141 @@
+"""
+Rollout cost of Diffusion Policy: control steps per second of the policy alone, and the time of a step that predicts.
+
+A policy of configs/json/diffusion_policy.json's size (its U-Net and horizons; a checkpoint's weights with
+--checkpoint, else untrained ones, which cost the same) acts on the sample data's observations, one per control step
+as veragmil-evaluate feeds them. Each case changes one thing the algorithm leaves free: the denoising steps per
+prediction (DDIM's, or the template's DDPM with 100), the actions executed per prediction (action chunking: the
+config's action horizon, or 1 to predict every step) and the torch threads. ScoopGranular's own step (20-70 steps/s
+here, veragmil-bench) comes on top in a rollout.
+
+Wall-clock rates hold only on an otherwise idle machine; the CPU-time rates (this process's CPU seconds, all its
+threads) stand for an idle core with 1 thread even when other jobs load the machine.
+
+    python scripts/bench_policy.py                              # DDIM 10 and 5, DDPM 100; chunks of 8 and 1
+    python scripts/bench_policy.py --checkpoint runs/x/models/model_epoch_100.pth --threads 1 2
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import runpy
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+SAMPLE_DATA = ROOT / "demos" / "scoop.hdf5"
+
+# OSMesa whatever the display, set before robosuite is imported: veragmil_suite.rendering is run from its file, as
+# importing it through the package would import robosuite first
+runpy.run_path(str(ROOT / "veragmil_suite" / "rendering.py"))["use_headless_rendering"]()
+os.environ.setdefault("PYNPUT_BACKEND", "dummy")
+
+# (scheduler, denoising steps, actions executed per prediction): the config's case first
+CASES = (("ddim", 10, 8), ("ddim", 5, 8), ("ddpm", 100, 8), ("ddim", 10, 1))
+
+
+def _config(checkpoint: str | None):
+    """The config of the checkpoint, or of configs/json/diffusion_policy.json on the sample data."""
+    from robomimic.config import config_factory
+
+    if checkpoint is not None:
+        import robomimic.utils.file_utils as FileUtils
+
+        ckpt = FileUtils.load_dict_from_checkpoint(checkpoint)
+        config, _ = FileUtils.config_from_checkpoint(ckpt_dict=ckpt)
+        return config, ckpt
+    config = config_factory("diffusion_policy")
+    with config.values_unlocked():
+        config.update(json.loads((ROOT / "configs" / "json" / "diffusion_policy.json").read_text()))
+        config.train.data = str(SAMPLE_DATA)
+    return config, None
+
+
+def bench_case(config, ckpt, scheduler: str, denoising_steps: int, chunk: int, steps: int) -> dict:
+    """Times ``steps`` control steps (after one warm-up prediction) of one case; returns its rates."""
+    import h5py
+    import numpy as np
+    import robomimic.utils.file_utils as FileUtils
+    import robomimic.utils.obs_utils as ObsUtils
+    from robomimic.algo import RolloutPolicy, algo_factory
+
+    config = type(config)(dict_to_load=json.loads(config.dump()))
+    with config.values_unlocked():
+        config.algo.ddpm.enabled = scheduler == "ddpm"
+        config.algo.ddim.enabled = scheduler == "ddim"
+        config.algo[scheduler].num_inference_timesteps = denoising_steps
+        config.algo.horizon.action_horizon = chunk
+    ObsUtils.initialize_obs_utils_with_config(config)
+    if ckpt is not None:
+        shape_meta = ckpt["shape_metadata"]
+    else:
+        shape_meta = FileUtils.get_shape_metadata_from_dataset(str(SAMPLE_DATA), all_obs_keys=config.all_obs_keys)
+    model = algo_factory(config.algo_name, config, shape_meta["all_shapes"], shape_meta["ac_dim"], device="cpu")
+    if ckpt is not None:
+        model.deserialize(ckpt["model"])
+    policy = RolloutPolicy(model)
+    with h5py.File(SAMPLE_DATA, "r") as f:
+        demo = f["data/demo_0/obs"]
+        observations = [{k: demo[k][t] for k in shape_meta["all_obs_keys"]} for t in range(steps + 1)]
+    policy.start_episode()
+    policy(ob=observations[0])  # warm-up: the EMA weights copied in, the first prediction
+    wall, cpu = [], []
+    for ob in observations[1:]:
+        start, start_cpu = time.perf_counter(), time.process_time()
+        policy(ob=ob)
+        wall.append(time.perf_counter() - start)
+        cpu.append(time.process_time() - start_cpu)
+    wall, cpu = np.array(wall), np.array(cpu)
+    predicting = np.argsort(cpu)[-max(1, steps // chunk) :]  # the costliest steps are those that predict
+    return dict(
+        scheduler=scheduler,
+        denoising_steps=denoising_steps,
+        chunk=chunk,
+        steps_per_s=steps / wall.sum(),
+        cpu_steps_per_s=steps / cpu.sum(),
+        predict_ms=1000 * float(np.median(wall[predicting])),
+        predict_cpu_ms=1000 * float(np.median(cpu[predicting])),
+    )
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--checkpoint", default=None, help="a diffusion_policy checkpoint (default: untrained)")
+    parser.add_argument("--steps", type=int, default=48, help="timed control steps per case (a multiple of 8)")
+    parser.add_argument("--threads", type=int, nargs="+", default=[1, 2], help="torch thread counts")
+    args = parser.parse_args(argv)
+
+    from veragmil_suite import robomimic_compat
+
+    robomimic_compat.install()
+    import torch
+
+    config, ckpt = _config(args.checkpoint)
+    load_before = os.getloadavg()[0]
+    rows = []
+    for threads in args.threads:
+        torch.set_num_threads(threads)
+        for scheduler, denoising_steps, chunk in CASES:
+            rows.append(dict(bench_case(config, ckpt, scheduler, denoising_steps, chunk, args.steps), threads=threads))
+            r = rows[-1]
+            print(f"{scheduler} {denoising_steps}, chunk {chunk}, {threads} threads: {r['steps_per_s']:.1f} steps/s")
+    print(
+        f"\nDiffusion Policy rollout cost, CPU ({os.cpu_count()} cores, load average {load_before:.1f} -> "
+        f"{os.getloadavg()[0]:.1f}), {'checkpoint ' + args.checkpoint if ckpt else 'untrained weights'}"
+    )
+    print(
+        "| scheduler | denoising steps | actions per prediction | torch threads | control steps/s | "
+        "per CPU second | predicting step (ms) | its CPU ms |"
+    )
+    print("|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        print(
+            f"| {r['scheduler'].upper()} | {r['denoising_steps']} | {r['chunk']} | {r['threads']} | "
+            f"{r['steps_per_s']:.1f} | {r['cpu_steps_per_s']:.1f} | {r['predict_ms']:.0f} | {r['predict_cpu_ms']:.0f} |"
+        )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,57 @@
+"""The observation sets: what ScoopGranular's ``object`` holds, and a set without grain counts that the grains do not
+change."""
+
+import numpy as np
+import pytest
+import robosuite
+
+import veragmil_suite  # noqa: F401 - registers ScoopGranular
+from veragmil_suite import robomimic_obs
+from veragmil_suite.observation_sets import (
+    OBJECT_OBSERVABLES,
+    OBSERVATION_SETS,
+    PRIVILEGED_OBSERVATIONS,
+    check_observation_set,
+    with_observation_set,
+)
+
+
+@pytest.fixture(scope="module")
+def env():
+    env = robosuite.make(
+        "ScoopGranular", robots="XArm7", food="pasta", n_grains=12, pile_variants=1, has_renderer=False,
+        has_offscreen_renderer=False, use_camera_obs=False,
+    )  # fmt: skip
+    env.reset(seed=0)
+    yield env
+    env.close()
+
+
+def test_object_concatenates_the_listed_observables_grain_counts_among_them(env):
+    task = [name for name, observable in env._observables.items() if observable.modality == "object"]
+    assert tuple(task) == OBJECT_OBSERVABLES
+    obs = robomimic_obs.observation(env)
+    np.testing.assert_array_equal(obs["object"], np.concatenate([obs[k] for k in OBJECT_OBSERVABLES]))
+    assert "spoon_load" in OBJECT_OBSERVABLES and "spoon_load" in PRIVILEGED_OBSERVATIONS
+
+
+def test_the_no_load_set_holds_no_grain_counts_and_no_grain_moves_it(env):
+    keys = OBSERVATION_SETS["no-load"]
+    assert not set(keys) & set(PRIVILEGED_OBSERVATIONS)
+    before = robomimic_obs.observation(env)
+    assert set(keys) <= set(before)
+    # every grain carried out of the bowl: the counts change, the no-load observations do not
+    qpos = env.sim.data.qpos
+    qpos[env.grain_qpos_adr] += 0.5
+    after = robomimic_obs.observation(env, robomimic_obs.observe(env))
+    assert after["spoon_load"][1] == 12 and before["spoon_load"][1] == 0
+    for key in keys:
+        np.testing.assert_array_equal(after[key], before[key], err_msg=key)
+
+
+def test_a_config_takes_a_sets_low_dim_keys_and_an_unknown_set_is_named():
+    config = {"observation": {"modalities": {"obs": {"low_dim": ["object"], "rgb": ["overhead_image"]}}}}
+    out = with_observation_set(config, "no-load")["observation"]["modalities"]["obs"]
+    assert out == {"low_dim": list(OBSERVATION_SETS["no-load"]), "rgb": ["overhead_image"]}
+    with pytest.raises(ValueError, match=r"unknown observation set 'counts'; accepted: \['no-load', 'object'\]"):
+        check_observation_set("counts")

@@ -1,0 +1,42 @@
+"""
+The low-dim observation sets a policy can be trained on, by name: what veragmil-study's ``--obs-sets`` trains with
+and what its tables name in every model's column.
+
+ScoopGranular's task observables (modality "object", ``_setup_observables`` of veragmil_suite.environments.scoop)
+are ``desired_pose`` (the post-scoop spoon pose, a fixed offset from the bowl's rim), ``bowl_pos`` (the centre of
+the bowl's rim), ``spoon_to_desired_pos`` (the desired position less the spoon's), ``spoon_load`` (the grains in the
+spoon and the grains spilled) and, with ``use_food_params_obs``, ``food_params`` (the food's grain size, friction,
+restitution and density); robosuite concatenates them, in that order, into ``object``. Grain counts and the food's
+physical parameters are privileged: no real robot observes them.
+
+- ``object``: the low-dim configs' keys, the end-effector pose and ``object``, grain counts included.
+- ``no-load``: what a real robot could have: its end-effector pose (proprioception), the desired pose and the bowl's
+  position (a camera finds the bowl) and the spoon's offset from the desired position (the same two combined).
+"""
+
+from __future__ import annotations
+
+# the observables robosuite concatenates into ``object`` (without use_food_params_obs), in order
+OBJECT_OBSERVABLES = ("desired_pose", "bowl_pos", "spoon_to_desired_pos", "spoon_load")
+# observations no real robot has: grain counts, the food's physical parameters, and ``object``, which holds the counts
+PRIVILEGED_OBSERVATIONS = ("spoon_load", "food_params", "object")
+
+OBSERVATION_SETS: dict[str, tuple[str, ...]] = {
+    "object": ("robot0_eef_pos", "robot0_eef_quat", "object"),
+    "no-load": ("robot0_eef_pos", "robot0_eef_quat", "desired_pose", "bowl_pos", "spoon_to_desired_pos"),
+}
+# the set of the low-dim configs in configs/json (tests/test_configs.py holds them to it)
+DEFAULT_OBSERVATION_SET = "object"
+
+
+def check_observation_set(name: str) -> str:
+    """``name`` if it is an observation set; a ValueError naming the accepted ones otherwise."""
+    if name not in OBSERVATION_SETS:
+        raise ValueError(f"unknown observation set {name!r}; accepted: {sorted(OBSERVATION_SETS)}")
+    return name
+
+
+def with_observation_set(config: dict, name: str) -> dict:
+    """A robomimic config (a JSON dict, changed in place and returned) whose low-dim observations are the set's."""
+    config["observation"]["modalities"]["obs"]["low_dim"] = list(OBSERVATION_SETS[check_observation_set(name)])
+    return config
