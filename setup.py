@@ -45,8 +45,7 @@ setup(
         "imageio-ffmpeg>=0.4.9",
         "matplotlib>=3.7",
         # Diffusion Policy's noise schedulers and EMA (veragmil_suite.robomimic_algos), as robomimic 0.5 uses them;
-        # it needs huggingface-hub >= 1.32
-        # 0.36 is the newest diffusers that shares huggingface-hub (< 0.36) with lerobot-dataset 0.4.4 (extra lerobot)
+        # 0.36 is the newest that shares huggingface-hub (< 0.36) with lerobot-dataset 0.4.4 (extra lerobot)
         "diffusers==0.36.0",
     ],
     extras_require={
