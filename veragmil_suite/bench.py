@@ -2,7 +2,7 @@
 
     python -m veragmil_suite.bench                    # every food, 1x/2x/4x its default grain count
     python -m veragmil_suite.bench --foods rice --scales 1 --steps 40 --episodes 2
-    python -m veragmil_suite.bench --robot XArm7,G1FixedLowerBody --foods rice --scales 1   # robots side by side
+    python -m veragmil_suite.bench --robots XArm7,G1FixedLowerBody --foods rice --scales 1   # robots side by side
     python -m veragmil_suite.bench --foods rice --scales 1 --sleep-tolerance 3e-3           # another tolerance
 
 Real time at 20 Hz control is 20 env steps/s (RTF 1.0). "bare mj_step" steps the same compiled scene with no

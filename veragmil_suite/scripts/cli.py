@@ -15,6 +15,7 @@ Conventions (tests/test_cli.py walks every console program's parser and holds th
 from __future__ import annotations
 
 import argparse
+import ast
 import contextlib
 import copy
 import errno
@@ -160,7 +161,7 @@ class Choice(Kind):
 
     @property
     def accepted(self) -> str:
-        return f"a {self.what}: {', '.join(self.values)}"
+        return f"{self.what}, one of: {', '.join(self.values)}"
 
     def __call__(self, text: str) -> str:
         if text not in self.values:
@@ -198,7 +199,7 @@ class ListOf(Kind):
 
     def __init__(self, item: Kind):
         self.item = item
-        self.accepted = f"{item.accepted} (several: space- or comma-separated)"
+        self.accepted = f"{item.accepted}; several, separated by spaces or commas"
 
     def __call__(self, text: str) -> list:
         parts = str(text).split(",")
@@ -569,7 +570,6 @@ hdf5_file = InputFile("HDF5 file", check=_hdf5)
 robomimic_dataset = InputFile("robomimic dataset (HDF5)", check=_robomimic_hdf5)
 robomimic_config = InputFile("robomimic config (JSON)", check=_robomimic_config)
 checkpoint = InputFile("robomimic checkpoint (.pth)", check=_checkpoint)
-output_file = OutputFile()
 output_dataset = OutputFile("dataset file")
 output_video = OutputFile("video file")
 output_folder = OutputFolder()
@@ -700,13 +700,16 @@ def _check_env_value(name: str, value: Any, kwargs: dict, default: Any) -> None:
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise count.refuse(value)
         from veragmil_suite.environments.scoop import MAX_GRAINS_PER_DEFAULT
-        from veragmil_suite.foods import get_food
+        from veragmil_suite.foods import FOODS
 
-        spec = get_food(kwargs.get("food", "rice")) if kwargs.get("food") in food.values else None
-        if spec is not None and value > MAX_GRAINS_PER_DEFAULT * spec.default_grains:
+        # the food's own limit, or without a food the largest (each food's is checked where it is known)
+        foods = [FOODS[kwargs["food"]]] if kwargs.get("food") in FOODS else list(FOODS.values())
+        spec = max(foods, key=lambda f: f.default_grains)
+        if value > MAX_GRAINS_PER_DEFAULT * spec.default_grains:
+            what = spec.name if len(foods) == 1 else f"any food ({spec.name})"
             raise argparse.ArgumentTypeError(
-                f"at most {MAX_GRAINS_PER_DEFAULT * spec.default_grains} grains of {spec.name} "
-                f"({MAX_GRAINS_PER_DEFAULT}x its default), got {value}"
+                f"at most {MAX_GRAINS_PER_DEFAULT * spec.default_grains} grains of {what}, "
+                f"{MAX_GRAINS_PER_DEFAULT}x its default, got {value}"
             )
         return
     if name in ("control_freq", "physics_timestep_s"):
@@ -860,7 +863,13 @@ class Parser(argparse.ArgumentParser):
 
     def add_argument(self, *names: str, aliases: Iterable[str] = (), **kwargs) -> argparse.Action:
         aliases = tuple(aliases)
-        if isinstance(kwargs.get("type"), ListOf) and kwargs.get("action") in (None, "store"):
+        kind = kwargs.get("type")
+        if (
+            isinstance(kind.item if isinstance(kind, ListOf) else kind, Choice)
+            and kwargs.get("help") != argparse.SUPPRESS
+        ):
+            kwargs["help"] = f"{kwargs.get('help') or ''} (%(type)s)".strip()  # the names, listed when --help prints
+        if isinstance(kind, ListOf) and kwargs.get("action") in (None, "store"):
             kwargs.setdefault("nargs", "+")
             kwargs["action"] = Flatten
         action = super().add_argument(*names, *aliases, **kwargs)
@@ -890,6 +899,61 @@ class Parser(argparse.ArgumentParser):
             setattr(namespace, dest, given or flagged)
             delattr(namespace, f"{dest}_option")
         return namespace, extras
+
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# Upstream scripts' parsers                                                                                        #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+def main_block(module) -> object:
+    """The compiled body of a script's ``if __name__ == "__main__":`` block (its argparse and its call)."""
+    path = inspect.getsourcefile(module)
+    with open(path) as f:
+        tree = ast.parse(f.read(), filename=path)
+    for node in tree.body:
+        test = node.test if isinstance(node, ast.If) else None
+        if (
+            isinstance(test, ast.Compare)
+            and isinstance(test.left, ast.Name)
+            and test.left.id == "__name__"
+            and isinstance(test.comparators[0], ast.Constant)
+            and test.comparators[0].value == "__main__"
+        ):
+            return compile(ast.Module(body=node.body, type_ignores=[]), path, "exec")
+    raise RuntimeError(f"{path} has no __main__ block to run")
+
+
+class _Captured(Exception):
+    def __init__(self, parser: argparse.ArgumentParser):
+        self.parser = parser
+
+
+@contextlib.contextmanager
+def parse_args_answering(answer: Callable[[argparse.ArgumentParser], argparse.Namespace]):
+    """Within: every ArgumentParser.parse_args returns ``answer(parser)`` (the script's own parser is built as
+    robomimic wrote it, and what it parses is decided here)."""
+    original = argparse.ArgumentParser.parse_args
+    argparse.ArgumentParser.parse_args = lambda self, *args, **kwargs: answer(self)
+    try:
+        yield
+    finally:
+        argparse.ArgumentParser.parse_args = original
+
+
+def _raise_captured(parser: argparse.ArgumentParser) -> argparse.Namespace:
+    raise _Captured(parser)
+
+
+def script_parser(module) -> argparse.ArgumentParser:
+    """The parser a script's ``if __name__ == "__main__":`` block builds (robosuite's and robomimic's scripts build
+    theirs there), taken at its parse_args: nothing after that runs."""
+    try:
+        with parse_args_answering(_raise_captured):
+            exec(main_block(module), dict(module.__dict__))
+    except _Captured as captured:
+        return captured.parser
+    raise RuntimeError(f"{module.__name__}'s __main__ block parsed no arguments")
 
 
 # ---------------------------------------------------------------------------------------------------------------- #

@@ -1,23 +1,32 @@
 """
 Collect ScoopGranular demonstrations straight into a robomimic HDF5 file.
 
-Devices: ``keyboard`` and ``spacemouse`` (robosuite's own device classes), ``vr`` (a WebXR headset,
-veragmil_suite.devices.VRDevice) and ``scripted`` (the scripted expert, veragmil_suite.expert: no human, no
-display, no prompt). After each episode its metrics (success, spilled pieces and volume, completion time) are
-printed and stored, and the operator keeps or discards it; discarded attempts are still logged, so a human
-operator's success rate counts every attempt (the paper's "Human" column).
+A superset of robosuite's robosuite/scripts/collect_human_demonstrations.py: its options (--environment, --robots,
+--config, --arm, --camera, --controller, --device, --pos-sensitivity, --rot-sensitivity, --renderer, --max_fr,
+--reverse_xy, --goal_update_mode, --directory) mean what they mean there, and its devices (keyboard, spacemouse,
+dualsense, mjgui: robosuite's own device classes) are chosen with --device as there; ours add ``vr`` (a WebXR
+headset, veragmil_suite.devices.VRDevice) and ``scripted`` (the scripted expert, veragmil_suite.expert: no human,
+no display, no prompt). Run it as ``veragmil-collect``, as
+``python -m veragmil_suite.scripts.collect_human_demonstrations`` or by its path, as robosuite's is run: the same
+program each way.
+
+After each episode its metrics (success, spilled pieces and volume, completion time) are printed and stored, and
+the operator keeps or discards it; discarded attempts are still logged, so a human operator's success rate counts
+every attempt (the paper's "Human" column).
 
 Each kept episode is flushed to the file when it ends: stopping the script (Ctrl-C, or killing it) loses at most
-the episode in progress. Giving an existing file appends to it.
+the episode in progress. Giving an existing file appends to it; --directory DIR records into a new
+DIR/<time>/demo.hdf5, as robosuite's script does.
 
 Attempt k (from 0) resets the environment with seed ``--seed`` + k (and seeds the scripted expert with it), so an
-episode depends on its seed alone. The scripted device can record in ``--workers`` processes, or as Ray tasks with
+episode depends on its seed alone. The scripted device can record in ``--processes`` processes, or as Ray tasks with
 ``--ray [ADDRESS]`` (on the piles settled here): attempts run in parallel and are kept or discarded in seed order,
-so the file is the same for any number of workers, wherever they run.
+so the file is the same for any number of processes, wherever they run.
 
 Example:
     veragmil-collect --device scripted --food rice --episodes 2 --output out.hdf5
     veragmil-collect --device keyboard --food pasta --episodes 30 --output pasta_keyboard.hdf5 --operator alice
+    python collect_human_demonstrations.py --environment ScoopGranular --robots XArm7 --device spacemouse --directory d
 """
 
 from __future__ import annotations
@@ -177,8 +186,10 @@ def build_parser() -> Parser:
     add(
         "--render",
         type=cli.Choice("render mode", ("auto", "on", "off")),
+        nargs="?",
+        const="on",
         default="auto",
-        help="live window (auto: for people with a display)",
+        help="live window: on (alone: --render, as robomimic's), off, or auto (for people with a display)",
     )
     add("--vr-host", type=cli.host, default="127.0.0.1", help="VR server address (0.0.0.0 for a Wi-Fi headset)")
     add("--vr-port", type=cli.port, default=8765, help="VR server port (0: any free one)")

@@ -13,10 +13,7 @@ non-zero (robomimic's train.py catches its errors and would exit 0) and nothing 
 from __future__ import annotations
 
 import argparse
-import ast
-import contextlib
 import importlib
-import inspect
 import os
 import sys
 from collections.abc import Callable
@@ -105,58 +102,12 @@ PROGRAMS = {
 }
 
 
-def _main_block(module) -> object:
-    """The compiled body of a script's ``if __name__ == "__main__":`` block (its argparse and its call)."""
-    path = inspect.getsourcefile(module)
-    with open(path) as f:
-        tree = ast.parse(f.read(), filename=path)
-    for node in tree.body:
-        test = node.test if isinstance(node, ast.If) else None
-        if (
-            isinstance(test, ast.Compare)
-            and isinstance(test.left, ast.Name)
-            and test.left.id == "__name__"
-            and isinstance(test.comparators[0], ast.Constant)
-            and test.comparators[0].value == "__main__"
-        ):
-            return compile(ast.Module(body=node.body, type_ignores=[]), path, "exec")
-    raise RuntimeError(f"{path} has no __main__ block to run")
-
-
-class _Captured(Exception):
-    def __init__(self, parser: argparse.ArgumentParser):
-        self.parser = parser
-
-
-@contextlib.contextmanager
-def _parse_args_answering(answer: Callable[[argparse.ArgumentParser], argparse.Namespace]):
-    """Within: every ArgumentParser.parse_args returns ``answer(parser)`` (the script's own parser is built as
-    robomimic wrote it, and what it parses is decided here)."""
-    original = argparse.ArgumentParser.parse_args
-    argparse.ArgumentParser.parse_args = lambda self, *args, **kwargs: answer(self)
-    try:
-        yield
-    finally:
-        argparse.ArgumentParser.parse_args = original
-
-
-def _raise_captured(parser: argparse.ArgumentParser) -> argparse.Namespace:
-    raise _Captured(parser)
-
-
 def build_parser(module_name: str) -> cli.Parser:
     """robomimic's own parser of the script, with each option given its kind (PROGRAMS) and our Parser's spelling
     rule: robomimic's names as robomimic spells them, and with dashes (--n-rollouts for --n_rollouts)."""
     script = PROGRAMS[module_name]
     robomimic_compat.install()  # robomimic's scripts import mujoco_py, which the compatibility layer stands in for
-    module = importlib.import_module(module_name)
-    try:
-        with _parse_args_answering(_raise_captured):
-            exec(_main_block(module), dict(module.__dict__))
-    except _Captured as captured:
-        parser = captured.parser
-    else:
-        raise RuntimeError(f"{module_name}'s __main__ block parsed no arguments")
+    parser = cli.script_parser(importlib.import_module(module_name))
     parser.__class__ = cli.Parser  # robomimic's options and abbreviations, with our spelling rule
     parser.prog = script.prog
     for action in parser._actions:
@@ -210,11 +161,11 @@ def _command(module_name: str, prepare: Callable | None = None) -> Callable[[lis
         check_args(module_name, args)
         module = importlib.import_module(module_name)
         outcome = prepare(module) if prepare is not None else None
-        code = _main_block(module)
+        code = cli.main_block(module)
         saved_argv = sys.argv
         sys.argv = [module.__file__]
         try:
-            with robomimic_compat.no_prompts(), _parse_args_answering(lambda parser: args):
+            with robomimic_compat.no_prompts(), cli.parse_args_answering(lambda parser: args):
                 exec(code, module.__dict__)
         finally:
             sys.argv = saved_argv
