@@ -196,3 +196,14 @@ def _run_and_check(program, argv, message, tmp_path, before, capsys):
     assert message in err, err[-2000:]
     assert len(said) == 1, said
     assert set(tmp_path.rglob("*")) == before  # nothing created
+
+
+@pytest.mark.parametrize("control_freq", [1e-9, 0.5, float("nan"), float("inf"), -20, True])
+def test_robosuite_make_refuses_a_control_rate_it_would_hang_on(control_freq):
+    """robosuite runs period / physics step substeps per control step: 1e-9 Hz never returned."""
+    import robosuite
+
+    import veragmil_suite  # noqa: F401
+
+    with pytest.raises(ValueError, match="control_freq must be a number of Hz of at least 1"):
+        robosuite.make("ScoopGranular", robots="XArm7", control_freq=control_freq, has_offscreen_renderer=False)

@@ -121,6 +121,8 @@ def bad_values(kind: cli.Kind, paths: dict[str, str]) -> list[tuple[str, str]]:
         return [("unknown name", "no-such-" + kind.what.replace(" ", "-"))]
     if isinstance(kind, (cli.Text,)):
         return [("empty", ""), ("two lines", "a\nb")]
+    if isinstance(kind, cli.RayAddress):
+        return [("a space", "head 6379"), ("two lines", "a\nb")]
     if isinstance(kind, cli.Boolean):
         return [("not a truth value", "maybe")]
     if isinstance(kind, cli.Robot):

@@ -66,7 +66,7 @@ def add_ray_argument(parser, pieces: str) -> None:
         nargs="?",
         const=THIS_MACHINE,
         default=None,
-        type=cli.text,
+        type=cli.ray_address,
         metavar="ADDRESS",
         help=f"run {pieces} as Ray tasks: without ADDRESS on $RAY_ADDRESS or a Ray instance started on this "
         "machine, with it on that cluster (its head's host:port, or 'auto' for one `ray start` began here); "

@@ -33,9 +33,6 @@ from typing import Any
 # Suffixes our writers append to an output's name while it is written (datasets.py: ".partial"; pipeline.py:
 # ".new"): an output name leaves room for the longest of them.
 WRITE_SUFFIX_ROOM = len(".partial")
-# a control period longer than a second is neither teleoperation nor a policy (and robosuite steps its physics
-# period / step times per control step: 1e-9 Hz would never return)
-MIN_CONTROL_FREQ_HZ = 1.0
 
 
 class UsageError(Exception):
@@ -181,6 +178,18 @@ class Text(Kind):
         return text
 
 
+class RayAddress(Kind):
+    """Where Ray runs: a cluster's head (host:port, ray://host:port, auto), or empty for this machine (what --ray
+    alone gives)."""
+
+    accepted = "a Ray address (host:port, ray://host:port or auto), or nothing for this machine"
+
+    def __call__(self, text: str) -> str:
+        if any(c.isspace() for c in str(text)):
+            raise self.refuse(text)
+        return text
+
+
 class Boolean(Kind):
     """true or false (also yes/no, on/off, 1/0), for robosuite's options that take a bool as a value."""
 
@@ -238,17 +247,26 @@ non_negative = Real(0.0)  # a duration that may be zero
 any_number = Real()
 
 
-class ControlFreq(Real):
-    """A control rate (Hz) the task runs at the physics step: positive, at least MIN_CONTROL_FREQ_HZ, and a whole
+class ControlFreq(Kind):
+    """A control rate (Hz) the task runs at the physics step: at least the task's MIN_CONTROL_FREQ_HZ, and a whole
     number of physics steps per control period."""
 
-    def __init__(self):
-        super().__init__(MIN_CONTROL_FREQ_HZ, accepted=f"a control rate in Hz of at least {MIN_CONTROL_FREQ_HZ:g}")
+    @property
+    def accepted(self) -> str:
+        from veragmil_suite.environments.scoop import MIN_CONTROL_FREQ_HZ
+
+        return f"a control rate in Hz of at least {MIN_CONTROL_FREQ_HZ:g}"
 
     def __call__(self, text: str, timestep_s: float | None = None) -> float:
-        value = super().__call__(text)
+        from veragmil_suite.environments.scoop import MIN_CONTROL_FREQ_HZ
         from veragmil_suite.models.scoop_task import PHYSICS_TIMESTEP_S, check_physics_timestep
 
+        try:
+            value = float(str(text).strip())
+        except ValueError:
+            raise self.refuse(text) from None
+        if not MIN_CONTROL_FREQ_HZ <= value < math.inf:
+            raise self.refuse(text)
         try:
             check_physics_timestep(PHYSICS_TIMESTEP_S if timestep_s is None else timestep_s, value)
         except ValueError as error:
@@ -576,6 +594,7 @@ output_folder = OutputFolder()
 file_name = FileName()
 text = Text()
 boolean = Boolean()
+ray_address = RayAddress()
 demo_name = Text("a demo's name, e.g. demo_0")
 
 
