@@ -869,6 +869,23 @@ def respell(parser: argparse.ArgumentParser, argv: list[str]) -> list[str]:
     return out
 
 
+def adopt(parser: argparse.ArgumentParser, prog: str) -> Parser:
+    """An upstream script's parser (robomimic's) as one of ours: named ``prog``, each long option shown with dashes
+    (--n-rollouts) and its own spelling (--n_rollouts) kept as a hidden alias, our help and spelling rule. Its
+    abbreviations stay allowed, as upstream allows them."""
+    parser.__class__ = Parser
+    parser.prog = prog
+    parser.formatter_class = HelpFormatter
+    for action in parser._actions:
+        dashed = [s[:2] + s[2:].replace("_", "-") if s.startswith("--") else s for s in action.option_strings]
+        aliases = tuple(s for s in action.option_strings if s not in dashed)
+        for name in dashed:
+            parser._option_string_actions[name] = action
+        action.option_strings = list(dict.fromkeys([*dashed, *aliases]))
+        action.aliases = aliases
+    return parser
+
+
 class Parser(argparse.ArgumentParser):
     """
     The argparse parser of every console program: no abbreviated options (an abbreviation that is unique today is

@@ -106,15 +106,16 @@ PROGRAMS = {
 
 
 def build_parser(module_name: str) -> cli.Parser:
-    """robomimic's own parser of the script, with each option given its kind (PROGRAMS) and our Parser's spelling
-    rule: robomimic's names as robomimic spells them, and with dashes (--n-rollouts for --n_rollouts)."""
+    """robomimic's own parser of the script, with each option given its kind (PROGRAMS), adopted by our convention:
+    robomimic's names, shown with dashes (--n-rollouts), robomimic's spelling (--n_rollouts) accepted as well."""
     script = PROGRAMS[module_name]
     robomimic_compat.install()  # robomimic's scripts import mujoco_py, which the compatibility layer stands in for
     parser = cli.script_parser(importlib.import_module(module_name))
-    parser.__class__ = cli.Parser  # robomimic's options and abbreviations, with our spelling rule
-    parser.prog = script.prog
+    kinds = {action: next((script.kinds[s] for s in action.option_strings if s in script.kinds), None)
+             for action in parser._actions}  # fmt: skip
+    cli.adopt(parser, script.prog)
     for action in parser._actions:
-        kind = next((script.kinds[s] for s in action.option_strings if s in script.kinds), None)
+        kind = kinds[action]
         if kind is None:
             continue
         action.type = kind
