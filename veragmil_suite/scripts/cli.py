@@ -584,7 +584,9 @@ def _checkpoint(path: str) -> None:
 
 
 json_file = InputFile("JSON file", check=_json_value)
-hdf5_file = InputFile("HDF5 file", check=_hdf5)
+# our datasets' content is checked where they are opened (veragmil_suite.recording.open_dataset: one DatasetError
+# line naming what is wrong), which also knows what an interrupted write left
+dataset = InputFile("dataset file")
 robomimic_dataset = InputFile("robomimic dataset (HDF5)", check=_robomimic_hdf5)
 robomimic_config = InputFile("robomimic config (JSON)", check=_robomimic_config)
 checkpoint = InputFile("robomimic checkpoint (.pth)", check=_checkpoint)

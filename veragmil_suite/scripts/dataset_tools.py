@@ -92,7 +92,7 @@ def format_summary(s: dict, verbose: bool = False) -> str:
 
 def build_info_parser() -> Parser:
     p = Parser("veragmil-dataset-info", description="Summarize ScoopGranular demonstration files.")
-    p.add_input("dataset", "--dataset", cli.hdf5_file, many=True, help="HDF5 files")
+    p.add_input("dataset", "--dataset", cli.dataset, many=True, help="HDF5 files")
     p.add_argument("--verbose", "-v", action="store_true", help="one line per demo")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.add_argument("--clean", action="store_true", help="remove what interrupted writes left (never a finished demo)")
@@ -134,7 +134,7 @@ def build_merge_parser() -> Parser:
         description="Merge ScoopGranular demonstration files into a new file (demos renumbered demo_0...; each "
         "keeps its food, device, operator and metrics; the attempt logs are joined; masks are redone).",
     )
-    p.add_input("inputs", "--dataset", cli.hdf5_file, many=True, help="HDF5 files to merge, in order")
+    p.add_input("inputs", "--dataset", cli.dataset, many=True, help="HDF5 files to merge, in order")
     p.add_argument(
         "--output", "-o", type=cli.output_dataset, required=True, help="the merged file (must not exist unless --force)"
     )
@@ -158,7 +158,7 @@ def build_split_parser() -> Parser:
         description="Split a demonstration file into train and valid demos (robomimic's mask/train, mask/valid), "
         "in place.",
     )
-    p.add_input("dataset", "--dataset", cli.hdf5_file, help="HDF5 file")
+    p.add_input("dataset", "--dataset", cli.dataset, help="HDF5 file")
     p.add_argument(
         "--valid-ratio",
         aliases=["--ratio"],
@@ -196,7 +196,7 @@ def build_replay_parser() -> Parser:
         description="Replay demos of a ScoopGranular file to an mp4: from the recorded states (default), or by "
         "replaying the actions open loop from the first state, which also checks that replay reproduces the states.",
     )
-    p.add_input("dataset", "--dataset", cli.hdf5_file, help="HDF5 file")
+    p.add_input("dataset", "--dataset", cli.dataset, help="HDF5 file")
     p.add_argument(
         "--output",
         "-o",
@@ -254,7 +254,7 @@ def build_render_obs_parser() -> Parser:
         description="Write a copy of a ScoopGranular dataset whose camera observations (<camera>_image, "
         "<camera>_depth) are re-rendered from the recorded states, for other cameras or image sizes.",
     )
-    p.add_input("dataset", "--dataset", cli.hdf5_file, help="HDF5 file")
+    p.add_input("dataset", "--dataset", cli.dataset, help="HDF5 file")
     p.add_argument("--output", "-o", type=cli.output_dataset, required=True, help="new HDF5 file")
     p.add_argument(
         "--camera-names",
