@@ -114,7 +114,7 @@ def test_replay_writes_a_video_and_confirms_exact_replay(files, tmp_path, capsys
     assert len(frames) == 2 * STEPS and frames[0].shape == (64, 64, 3)
     assert np.std(frames[0]) > 5  # a rendered scene, not a blank
     assert replay_main([str(pasta), "--output", str(tmp_path / "x.mp4"), "--camera", "nowhere"]) == 2
-    assert "no camera 'nowhere'" in capsys.readouterr().err
+    assert "unknown camera 'nowhere'; accepted: " in capsys.readouterr().err
 
 
 def test_render_obs_reproduces_the_recording_and_renders_other_cameras(files, tmp_path):

@@ -67,18 +67,17 @@ def test_bad_settings_name_the_accepted_values(tmp_path):
         PipelineSettings(output_dir=str(tmp_path), agents={"expert BC object obs": "expert:careful"})
     assert PipelineSettings(output_dir=str(tmp_path), agents={"careful": "expert:careful"}).agents
     result = _run("veragmil-study", "--output-dir", tmp_path / "s", "--algos", "gail", timeout=60)
-    assert result.returncode == 2 and "invalid choice: 'gail'" in result.stderr
+    assert result.returncode == 2 and "argument --algos: unknown algorithm 'gail'; accepted: bc, " in result.stderr
     result = _run("veragmil-quickstart", "--output-dir", tmp_path / "q", "--episodes", "0", timeout=60)
     assert result.returncode == 2 and "argument --episodes: must be a positive integer, got 0" in result.stderr
     assert not (tmp_path / "q").exists() and not (tmp_path / "s").exists()
 
 
 def test_no_operators_leaves_the_scripted_operators_out_of_the_study():
-    import argparse
-
+    from veragmil_suite.scripts.cli import Parser
     from veragmil_suite.scripts.study import add_pipeline_arguments, settings_from_args
 
-    parser = argparse.ArgumentParser()
+    parser = Parser("veragmil-study")
     add_pipeline_arguments(parser, PipelineSettings(output_dir="runs/study"))
     argv = ["--output-dir", "runs/x", "--profiles", "expert", "expert-dart", "--algos", "bc"]
     assert settings_from_args(parser.parse_args(argv)).own_agents() == [

@@ -190,10 +190,9 @@ def test_ray_flag_without_ray_installed_is_one_line_naming_the_extra(program, ar
 
     monkeypatch.setitem(sys.modules, "ray", None)  # as Python reports a package that is not installed
     main = importlib.import_module(program).main
-    with pytest.raises(SystemExit) as exit_:
-        main([a.format(tmp=tmp_path) for a in args] + ["--ray"])
+    code = main([a.format(tmp=tmp_path) for a in args] + ["--ray"])
     err = capsys.readouterr().err
-    said = [line for line in err.splitlines() if line.strip() and not line.startswith(("usage:", " "))]
-    assert exit_.value.code == 2 and len(said) == 1, err
+    said = [line for line in err.splitlines() if line.strip() and not line.startswith(("usage:", " ", "[robosuite"))]
+    assert code == 2 and len(said) == 1, err
     assert distributed.INSTALL_HINT in said[0] and "--ray needs Ray" in said[0]
     assert list(tmp_path.iterdir()) == []

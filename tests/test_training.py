@@ -186,19 +186,21 @@ def test_image_training_renders_rgb_and_depth_in_rollouts(tmp_path):
     env.env.close()
 
 
-def test_failed_training_exits_nonzero(tmp_path):
+def test_a_config_whose_dataset_is_missing_is_refused_before_training(tmp_path):
     config = _tiny_config("bc", tmp_path / "missing.hdf5", tmp_path, "missing")
     result = _run("veragmil-train", "--config", config)
-    assert result.returncode != 0
-    assert "not found" in result.stdout and "training failed" in result.stderr
-    assert "finished run successfully!" not in result.stdout
+    assert result.returncode == 2
+    assert f"veragmil-train: --config's train.data: {tmp_path / 'missing.hdf5'}: no such file" in result.stderr
+    assert "Traceback" not in result.stderr and not (tmp_path / "missing").exists()
 
 
 def test_training_split_smaller_than_a_batch_fails_clearly(low_dim_dataset, tmp_path):
+    """robomimic's train.py catches a failed run's error and would exit 0: ours exits non-zero, saying so."""
     config = _tiny_config("bc", low_dim_dataset, tmp_path, "big_batch", batch_size=1000)
     result = _run("veragmil-train", "--config", config)
     assert result.returncode != 0
-    assert "fewer than one batch" in result.stdout
+    assert "fewer than one batch" in result.stdout and "training failed" in result.stderr
+    assert "finished run successfully!" not in result.stdout
 
 
 def test_normalize_obs_takes_any_leading_dimensions_and_leaves_extra_keys():

@@ -2,7 +2,7 @@
 
     python -m veragmil_suite.bench                    # every food, 1x/2x/4x its default grain count
     python -m veragmil_suite.bench --foods rice --scales 1 --steps 40 --episodes 2
-    python -m veragmil_suite.bench --robot XArm7,G1FixedLowerBody --foods rice --scales 1   # robots side by side
+    python -m veragmil_suite.bench --robots XArm7,G1FixedLowerBody --foods rice --scales 1   # robots side by side
     python -m veragmil_suite.bench --foods rice --scales 1 --sleep-tolerance 3e-3           # another tolerance
 
 Real time at 20 Hz control is 20 env steps/s (RTF 1.0). "bare mj_step" steps the same compiled scene with no
@@ -21,6 +21,7 @@ Run on an otherwise idle machine.
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 
 import mujoco
@@ -28,10 +29,11 @@ import numpy as np
 import robosuite
 
 import veragmil_suite  # noqa: F401  (registers ScoopGranular)
+from veragmil_suite.environments.scoop import MAX_GRAINS_PER_DEFAULT
 from veragmil_suite.episode import run_until_done
 from veragmil_suite.foods import DEFAULT_PHYSICS, FOODS, TRAINING_FOODS
-from veragmil_suite.humanoid import check_robot
-from veragmil_suite.models.scoop_task import GRAIN_SLEEP_TOLERANCE, check_sleep_tolerance
+from veragmil_suite.models.scoop_task import GRAIN_SLEEP_TOLERANCE
+from veragmil_suite.scripts import cli
 
 REAL_TIME_STEPS_PER_S = 20.0  # the default 20 Hz control rate
 # the speed issue's goals: at rest, asleep, 0.6x Lift; whole expert episodes of the slowest training food 1.5x (aim
@@ -154,47 +156,47 @@ def sleeping_ceiling(off: dict, on: dict) -> float:
     return (1.0 / off["rate"]) / pile_up_s_per_step if pile_up_s_per_step > 0 else float("inf")
 
 
-def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--foods", default=",".join(FOODS), help="comma-separated foods (default: all)")
-    parser.add_argument("--scales", default="1,2,4", help="grain counts as multiples of each food's default")
-    parser.add_argument("--steps", type=int, default=60, help="env steps timed per configuration")
+def build_parser() -> cli.Parser:
+    parser = cli.Parser("veragmil-bench", description=__doc__)
+    parser.add_argument("--foods", type=cli.ListOf(cli.food), default=list(FOODS), help="foods (default: all)")
     parser.add_argument(
-        "--episodes", type=int, default=2, help="whole expert episodes per food and setting (0: skip that table)"
+        "--scales",
+        type=cli.ListOf(cli.Real(0.0, MAX_GRAINS_PER_DEFAULT, open_low=True)),
+        default=[1.0, 2.0, 4.0],
+        help=f"grain counts as multiples of each food's default (at most {MAX_GRAINS_PER_DEFAULT})",
+    )
+    parser.add_argument("--steps", type=cli.count, default=60, help="env steps timed per configuration")
+    parser.add_argument(
+        "--episodes",
+        type=cli.count_or_zero,
+        default=2,
+        help="whole expert episodes per food and setting (0: skip that table)",
     )
     parser.add_argument(
-        "--robot", default="XArm7", help="comma-separated robots, each benched in turn (G1FixedLowerBody: the G1)"
+        "--robots",
+        aliases=["--robot"],
+        type=cli.ListOf(cli.robot),
+        default=["XArm7"],
+        help="robots, each benched in turn (G1FixedLowerBody: the G1)",
     )
     parser.add_argument(
         "--sleep-tolerance",
-        type=float,
+        type=cli.positive,
         default=GRAIN_SLEEP_TOLERANCE,
         help=f"MuJoCo's sleep_tolerance of the 'asleep' columns (default {GRAIN_SLEEP_TOLERANCE}, the task's)",
     )
-    args = parser.parse_args(argv)
-    try:
-        check_sleep_tolerance(args.sleep_tolerance)
-    except ValueError as e:
-        parser.error(f"--sleep-tolerance: {e}")
-    foods = [f.strip() for f in args.foods.split(",") if f.strip()]
-    unknown = [f for f in foods if f not in FOODS]
-    if unknown:
-        parser.error(f"unknown food(s) {', '.join(unknown)}; accepted foods: {', '.join(FOODS)}")
-    try:
-        scales = [float(s) for s in args.scales.split(",")]
-    except ValueError:
-        parser.error(f"--scales takes comma-separated numbers, got {args.scales!r}")
+    return parser
 
-    robots = [r.strip() for r in args.robot.split(",") if r.strip()]
-    for robot in robots:
-        try:
-            check_robot(robot)
-        except ValueError as e:
-            parser.error(str(e))
-    for i, robot in enumerate(robots):
+
+@cli.command(build_parser)
+def main(args: argparse.Namespace) -> int:
+    """veragmil-bench (python -m veragmil_suite.bench): the speed tables (see the module's docstring)."""
+    foods = list(dict.fromkeys(args.foods))
+    for i, robot in enumerate(dict.fromkeys(args.robots)):
         if i:
             print()
-        _bench_robot(robot, foods, scales, args.steps, args.episodes, args.sleep_tolerance)
+        _bench_robot(robot, foods, args.scales, args.steps, args.episodes, args.sleep_tolerance)
+    return 0
 
 
 def _bench_robot(
@@ -281,4 +283,4 @@ def _bench_robot(
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

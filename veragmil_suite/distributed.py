@@ -59,11 +59,14 @@ def require_ray() -> None:
 
 def add_ray_argument(parser, pieces: str) -> None:
     """The ``--ray [ADDRESS]`` option of a console program whose ``pieces`` can run as Ray tasks."""
+    from veragmil_suite.scripts import cli
+
     parser.add_argument(
         "--ray",
         nargs="?",
         const=THIS_MACHINE,
         default=None,
+        type=cli.ray_address,
         metavar="ADDRESS",
         help=f"run {pieces} as Ray tasks: without ADDRESS on $RAY_ADDRESS or a Ray instance started on this "
         "machine, with it on that cluster (its head's host:port, or 'auto' for one `ray start` began here); "
@@ -71,13 +74,10 @@ def add_ray_argument(parser, pieces: str) -> None:
     )
 
 
-def check_ray_argument(parser, args) -> None:
-    """Exits 2 with one line when ``--ray`` was given and Ray is not installed."""
+def check_ray_argument(args) -> None:
+    """Raises RayMissing (one line) when ``--ray`` was given and Ray is not installed."""
     if getattr(args, "ray", None) is not None:
-        try:
-            require_ray()
-        except RayMissing as error:
-            parser.error(str(error))
+        require_ray()
 
 
 @contextlib.contextmanager

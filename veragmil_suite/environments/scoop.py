@@ -44,6 +44,9 @@ M3_PER_CM3 = 1e-6
 MAX_GRAINS_PER_DEFAULT = 4
 # pile variants tried when a loaded model's pile is identified (beyond the environment's own pile_variants)
 LOADED_PILE_VARIANTS_TRIED = 64
+# the slowest control rate accepted: a control period longer than a second is neither teleoperation nor a policy,
+# and robosuite runs period / physics step substeps per control step (control_freq=1e-9 would never return)
+MIN_CONTROL_FREQ_HZ = 1.0
 
 # Spoon orientations in the world, as rotation matrices of the flange (eef) frame. Pre-scoop: the tool points
 # straight down, so the bent spoon's tip points down at 45 degrees along +x (away from the robot), its bowl
@@ -201,9 +204,14 @@ class ScoopGranular(ManipulationEnv):
         for label, rng_range in (("bowl_x_range", bowl_x_range), ("bowl_y_range", bowl_y_range)):
             if len(rng_range) != 2 or rng_range[0] > rng_range[1]:
                 raise ValueError(f"{label} must be (low, high) with low <= high, got {rng_range!r}")
-        if control_freq <= 0:
+        if (
+            isinstance(control_freq, bool)
+            or not isinstance(control_freq, (int, float))
+            or not (MIN_CONTROL_FREQ_HZ <= control_freq < float("inf"))
+        ):
             raise ValueError(
-                f"control_freq must be positive (20 Hz default, 60 Hz as in the paper), got {control_freq}"
+                f"control_freq must be a number of Hz of at least {MIN_CONTROL_FREQ_HZ:g} (20 Hz default, 60 Hz as in "
+                f"the paper), got {control_freq!r}"
             )
         self.bowl_shape = bowl_shape
         self.bowl_x_range = tuple(bowl_x_range)

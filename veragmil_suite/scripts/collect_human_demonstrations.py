@@ -1,23 +1,32 @@
 """
 Collect ScoopGranular demonstrations straight into a robomimic HDF5 file.
 
-Devices: ``keyboard`` and ``spacemouse`` (robosuite's own device classes), ``vr`` (a WebXR headset,
-veragmil_suite.devices.VRDevice) and ``scripted`` (the scripted expert, veragmil_suite.expert: no human, no
-display, no prompt). After each episode its metrics (success, spilled pieces and volume, completion time) are
-printed and stored, and the operator keeps or discards it; discarded attempts are still logged, so a human
-operator's success rate counts every attempt (the paper's "Human" column).
+A superset of robosuite's robosuite/scripts/collect_human_demonstrations.py: its options (--environment, --robots,
+--config, --arm, --camera, --controller, --device, --pos-sensitivity, --rot-sensitivity, --renderer, --max_fr,
+--reverse_xy, --goal_update_mode, --directory) mean what they mean there, and its devices (keyboard, spacemouse,
+dualsense, mjgui: robosuite's own device classes) are chosen with --device as there; ours add ``vr`` (a WebXR
+headset, veragmil_suite.devices.VRDevice) and ``scripted`` (the scripted expert, veragmil_suite.expert: no human,
+no display, no prompt). Run it as ``veragmil-collect``, as
+``python -m veragmil_suite.scripts.collect_human_demonstrations`` or by its path, as robosuite's is run: the same
+program each way.
+
+After each episode its metrics (success, spilled pieces and volume, completion time) are printed and stored, and
+the operator keeps or discards it; discarded attempts are still logged, so a human operator's success rate counts
+every attempt (the paper's "Human" column).
 
 Each kept episode is flushed to the file when it ends: stopping the script (Ctrl-C, or killing it) loses at most
-the episode in progress. Giving an existing file appends to it.
+the episode in progress. Giving an existing file appends to it; --directory DIR records into a new
+DIR/<time>/demo.hdf5, as robosuite's script does.
 
 Attempt k (from 0) resets the environment with seed ``--seed`` + k (and seeds the scripted expert with it), so an
-episode depends on its seed alone. The scripted device can record in ``--workers`` processes, or as Ray tasks with
+episode depends on its seed alone. The scripted device can record in ``--processes`` processes, or as Ray tasks with
 ``--ray [ADDRESS]`` (on the piles settled here): attempts run in parallel and are kept or discarded in seed order,
-so the file is the same for any number of workers, wherever they run.
+so the file is the same for any number of processes, wherever they run.
 
 Example:
     veragmil-collect --device scripted --food rice --episodes 2 --output out.hdf5
     veragmil-collect --device keyboard --food pasta --episodes 30 --output pasta_keyboard.hdf5 --operator alice
+    python collect_human_demonstrations.py --environment ScoopGranular --robots XArm7 --device spacemouse --directory d
 """
 
 from __future__ import annotations
@@ -34,113 +43,215 @@ import numpy as np
 
 from veragmil_suite.distributed import add_ray_argument, check_ray_argument
 from veragmil_suite.episode import SUCCESS_HOLD_S, run_until_done
-from veragmil_suite.scripts.cli import port, positive_int
+from veragmil_suite.scripts import cli
+from veragmil_suite.scripts.cli import Parser, UsageError, command
 
-DEVICES = ("keyboard", "spacemouse", "vr", "scripted")
+# robosuite's devices (its collect_human_demonstrations.py), then ours
+ROBOSUITE_DEVICES = ("keyboard", "spacemouse", "dualsense", "mjgui")
+DEVICES = (*ROBOSUITE_DEVICES, "vr", "scripted")
 KEEP_POLICIES = ("ask", "all", "success")
+# robosuite's env_configuration values mean something for two-robot tasks only; this task has one robot
+ENV_CONFIGURATIONS = ("default",)
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> Parser:
+    """robosuite's collect_human_demonstrations.py options, with their meaning there, and ours."""
     from veragmil_suite.expert import PROFILES
-    from veragmil_suite.foods import FOODS
+    from veragmil_suite.humanoid import SPOON_ARM
 
-    p = argparse.ArgumentParser(
-        prog="veragmil-collect",
-        description=__doc__.split("\n\n")[0].strip() + " Devices: keyboard, spacemouse, vr, scripted.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    p = Parser(
+        "veragmil-collect",
+        description=__doc__.split("\n\n")[0].strip() + " Devices: " + ", ".join(DEVICES) + ".",
     )
-    p.add_argument("--device", choices=DEVICES, default="keyboard", help="who drives the spoon")
-    p.add_argument("--food", choices=sorted(FOODS), default="rice")
-    p.add_argument("--episodes", type=int, default=1, help="demonstrations to save")
-    p.add_argument("--output", required=True, help="HDF5 file (appended to when it exists)")
-    p.add_argument(
-        "--robot",
+    add = p.add_argument
+    # robosuite's collect_human_demonstrations.py options, meaning what they mean there
+    add(
+        "--directory",
+        type=cli.output_folder,
+        default=None,
+        help="as robosuite's: record into DIRECTORY/<time>/demo.hdf5 (a new folder per run); or give --output",
+    )
+    add("--environment", type=cli.environment, default="ScoopGranular", help="the robosuite environment")
+    add(
+        "--robots",
+        aliases=["--robot"],
+        type=cli.robot,
         default="XArm7",
         help="robosuite robot with the spoon: a single arm, or the Unitree G1 (G1FixedLowerBody, G1ArmsOnly; "
         "needs robosuite-models, the package's humanoid extra)",
     )
-    p.add_argument(
+    add(
+        "--config",
+        type=cli.Choice("environment configuration", ENV_CONFIGURATIONS),
+        default="default",
+        help="robosuite's env_configuration (two-robot tasks only; this task has one robot)",
+    )
+    add(
+        "--arm",
+        type=cli.Choice("arm", ("right", "left")),
+        default=SPOON_ARM,
+        help=f"the arm the device drives: the spoon's ({SPOON_ARM})",
+    )
+    add(
+        "--camera",
+        type=cli.ListOf(cli.camera),
+        nargs="*",
+        default=None,
+        help="the live window's camera(s) (several need --renderer mujoco; default: the first of --camera-names)",
+    )
+    add(
         "--controller",
+        type=cli.controller,
         default="OSC_POSE",
-        help="OSC_POSE, or a robosuite composite-controller JSON file whose arm is OSC_POSE (other gains); every "
-        "device and the expert send OSC_POSE deltas (robosuite's devices support no IK_POSE)",
+        help="OSC_POSE (the task's gains), a robosuite composite controller (BASIC, ...) or a composite-controller "
+        "JSON file, whose arm is OSC_POSE: every device and the expert send OSC_POSE deltas (mjgui: absolute poses)",
     )
-    p.add_argument("--control-freq", type=int, default=20, help="control rate, Hz (the paper's VR runs at 60)")
-    p.add_argument("--horizon", type=positive_int, default=400, help="longest episode, control steps")
-    p.add_argument("--n-grains", type=positive_int, default=None, help="grains in the bowl (default: the food's own)")
-    p.add_argument(
-        "--cameras", nargs="*", default=["overhead"], help="cameras recorded as <name>_image; none: low-dim only"
+    add("--device", type=cli.Choice("device", DEVICES), default="keyboard", help="who drives the spoon")
+    add("--pos-sensitivity", type=cli.positive, default=1.0, help="teleoperation translation scale")
+    add("--rot-sensitivity", type=cli.positive, default=1.0, help="teleoperation rotation scale")
+    add(
+        "--renderer",
+        type=cli.Choice("renderer", ("mjviewer", "mujoco")),
+        default="mjviewer",
+        help="live window: MuJoCo's interactive viewer (mjviewer) or robosuite's OpenCV one (mujoco)",
     )
-    p.add_argument("--camera-size", type=positive_int, nargs="+", default=[84], metavar="PX", help="height [width]")
-    p.add_argument("--depth", action="store_true", help="also record <camera>_depth (metres)")
-    p.add_argument(
+    add(
+        "--max-fr",
+        type=cli.positive,
+        default=None,
+        help="at most this many control steps per second (robosuite's frame-rate cap; default: real time for "
+        "people, as fast as it runs for the scripted expert)",
+    )
+    add("--reverse-xy", type=cli.boolean, default=False, help="dualsense: swap the joystick's x and y")
+    add(
+        "--goal-update-mode",
+        type=cli.Choice("goal update mode", ("target", "achieved")),
+        default="target",
+        help="teleoperation devices: deltas from the last target or from the pose reached",
+    )
+
+    # ours
+    add("--output", type=cli.output_dataset, default=None, help="HDF5 file (appended to when it exists)")
+    add("--food", type=cli.food, default="rice")
+    add("--episodes", type=cli.count, default=1, help="demonstrations to save")
+    add("--control-freq", type=cli.control_freq, default=20, help="control rate, Hz (the paper's VR runs at 60)")
+    add("--horizon", type=cli.count, default=400, help="longest episode, control steps")
+    add("--n-grains", type=cli.count, default=None, help="grains in the bowl (default: the food's own)")
+    add(
+        "--camera-names",
+        aliases=["--cameras"],
+        type=cli.ListOf(cli.camera),
+        nargs="*",
+        default=["overhead"],
+        help="cameras recorded as <name>_image; none: low-dim only",
+    )
+    cli.add_image_size(p, 84, 84, old=["--camera-size"])
+    add("--depth", action="store_true", help="also record <camera>_depth (metres)")
+    add(
         "--seed",
-        type=int,
+        type=cli.seed,
         default=None,
         help="attempt k runs with seed SEED + k (env and scripted expert); default 0, or when appending, the seed "
         "after the file's last",
     )
-    p.add_argument(
-        "--workers",
-        type=positive_int,
+    add(
+        "--processes",
+        aliases=["--workers"],
+        type=cli.count,
         default=1,
         help="scripted device: parallel recording processes (same file for any N)",
     )
-    p.add_argument(
+    add(
         "--keep",
-        choices=KEEP_POLICIES,
+        type=cli.Choice("keep policy", KEEP_POLICIES),
         default=None,
         help="which episodes to save: ask the operator, all, or the successful ones "
         "(default: success for scripted, ask otherwise)",
     )
-    p.add_argument(
-        "--max-attempts", type=int, default=None, help="stop after this many episodes (default: 3x --episodes + 2 "
-        "for scripted, unlimited otherwise)"
-    )  # fmt: skip
-    p.add_argument(
+    add(
+        "--max-attempts",
+        type=cli.count,
+        default=None,
+        help="stop after this many episodes (default: 3x --episodes + 2 for scripted, unlimited otherwise)",
+    )
+    add(
         "--success-hold",
-        type=float,
+        type=cli.non_negative,
         default=SUCCESS_HOLD_S,
-        help="end an episode once success held this long, s",
+        help="end an episode once success held this long, s (0: success does not end it)",
     )
-    p.add_argument("--operator", default=None, help="who demonstrates (stored with every demo)")
-    p.add_argument("--profile", choices=sorted(PROFILES), default="expert", help="scripted operator profile")
-    p.add_argument("--valid-ratio", type=float, default=0.1, help="fraction of demos in mask/valid")
-    p.add_argument(
-        "--render", choices=("auto", "on", "off"), default="auto", help="live window (auto: for humans with a display)"
+    add("--operator", type=cli.text, default=None, help="who demonstrates (stored with every demo)")
+    add("--profile", type=cli.Choice("operator profile", sorted(PROFILES)), default="expert", help="scripted profile")
+    add("--valid-ratio", type=cli.fraction_below_one, default=0.1, help="fraction of demos in mask/valid")
+    add(
+        "--render",
+        type=cli.Choice("render mode", ("auto", "on", "off")),
+        nargs="?",
+        const="on",
+        default="auto",
+        help="live window: on (alone: --render, as robomimic's), off, or auto (for people with a display)",
     )
-    p.add_argument("--pos-sensitivity", type=float, default=1.0, help="keyboard / spacemouse / vr translation scale")
-    p.add_argument("--rot-sensitivity", type=float, default=1.0, help="keyboard / spacemouse / vr rotation scale")
-    p.add_argument("--vr-host", default="127.0.0.1", help="VR server address (0.0.0.0 for a Wi-Fi headset)")
-    p.add_argument("--vr-port", type=port, default=8765)
-    p.add_argument(
+    add("--vr-host", type=cli.host, default="127.0.0.1", help="VR server address (0.0.0.0 for a Wi-Fi headset)")
+    add("--vr-port", type=cli.port, default=8765, help="VR server port (0: any free one)")
+    add(
         "--vr-allow-emulated",
         action="store_true",
         help="vr: drive with poses the headset only estimates (WebXR emulatedPosition: a controller out of the "
         "cameras' view, or a desktop emulator such as iwer, which marks every pose so); off: they release the grip",
     )
-    p.add_argument("--quiet", action="store_true", help="print only the per-episode lines and the summary")
+    add("--quiet", action="store_true", help="print only the per-episode lines and the summary")
     add_ray_argument(p, "the scripted attempts")
     return p
 
 
+def check_args(args: argparse.Namespace) -> None:
+    """What no single option's kind can tell: how they combine. UsageError names the conflict."""
+    from veragmil_suite.humanoid import SPOON_ARM
+
+    if (args.output is None) == (args.directory is None):
+        raise UsageError("give --output FILE (appended to when it exists) or --directory DIR (robosuite's), one")
+    if args.arm != SPOON_ARM:
+        raise UsageError(f"--arm {args.arm}: the spoon is on the {SPOON_ARM} arm, which the device drives")
+    if args.processes > 1 and args.device != "scripted":
+        raise UsageError(f"--processes {args.processes} needs --device scripted (one person drives one device)")
+    if args.ray is not None and args.device != "scripted":
+        raise UsageError("--ray needs --device scripted (one person drives one device)")
+    if args.device == "mjgui" and args.renderer != "mjviewer":
+        raise UsageError("--device mjgui drags the spoon's target in MuJoCo's viewer: it needs --renderer mjviewer")
+    if args.device in ("keyboard", "mjgui") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise UsageError(f"--device {args.device} needs a display (no DISPLAY is set)")
+    if args.camera and len(args.camera) > 1 and args.renderer != "mujoco":
+        raise UsageError("several --camera views need --renderer mujoco (robosuite's mjviewer shows one)")
+    if args.device == "vr":
+        cli.check_port_free(args.vr_host, args.vr_port)
+    check_ray_argument(args)
+
+
+def output_path(args: argparse.Namespace) -> str:
+    """--output, or robosuite's --directory layout: DIRECTORY/<seconds>_<fraction>/demo.hdf5."""
+    if args.output is not None:
+        return args.output
+    seconds, fraction = str(time.time()).split(".")
+    return os.path.join(args.directory, f"{seconds}_{fraction}", "demo.hdf5")
+
+
 def env_kwargs_from_args(args) -> dict:
     """robosuite.make keyword arguments (besides the env name) for the command line, JSON-serializable."""
-    height, width = (args.camera_size * 2)[:2]
+    cameras = list(args.camera_names or [])
     kwargs = dict(
-        robots=args.robot,
+        robots=args.robots,
         food=args.food,
-        controller_configs=controller_config(args.controller, args.robot),
+        controller_configs=controller_config(args.controller, args.robots, absolute=args.device == "mjgui"),
         control_freq=args.control_freq,
         horizon=args.horizon,
         ignore_done=False,
         reward_shaping=False,
         use_object_obs=True,
-        use_camera_obs=bool(args.cameras),
-        has_offscreen_renderer=bool(args.cameras),
-        camera_names=list(args.cameras) if args.cameras else "overhead",
-        camera_heights=height,
-        camera_widths=width,
+        use_camera_obs=bool(cameras),
+        has_offscreen_renderer=bool(cameras),
+        camera_names=cameras or "overhead",
+        camera_heights=args.camera_height,
+        camera_widths=args.camera_width,
         camera_depths=bool(args.depth),
     )
     if args.n_grains is not None:
@@ -148,29 +259,32 @@ def env_kwargs_from_args(args) -> dict:
     return kwargs
 
 
-def controller_config(value: str, robot: str) -> dict:
-    """The composite controller config for ``--controller``: our OSC_POSE default or a JSON file with an OSC arm."""
-    from veragmil_suite.controllers import ARM_CONTROLLERS, load_scoop_controller_config
+def controller_config(value: str, robot: str, absolute: bool = False) -> dict:
+    """
+    The composite controller config for ``--controller`` (cli.controller checked its form): our OSC_POSE, robosuite's
+    composite controller of that name, or a JSON file. ``absolute``: the arm takes absolute world-frame poses (what
+    robosuite's mjgui device sends) instead of deltas. UsageError when the arm is not OSC_POSE.
+    """
+    import copy
+
+    from robosuite.controllers import ALL_COMPOSITE_CONTROLLERS, load_composite_controller_config
+
+    from veragmil_suite.controllers import load_scoop_controller_config
 
     if value == "OSC_POSE":
-        return load_scoop_controller_config("OSC_POSE", robot=robot)
-    if value in ARM_CONTROLLERS:
-        raise SystemExit(
-            f"veragmil-collect: collection needs OSC_POSE deltas; robosuite's devices and the scripted expert do not "
-            f"drive {value}"
-        )
-    try:
+        config = load_scoop_controller_config("OSC_POSE", robot=robot)
+    elif value in ALL_COMPOSITE_CONTROLLERS:
+        config = copy.deepcopy(load_composite_controller_config(controller=value, robot=robot))
+    else:
         with open(value) as f:
             config = json.load(f)
-    except (OSError, ValueError) as e:
-        raise SystemExit(
-            f"veragmil-collect: --controller {value!r} is neither OSC_POSE nor a readable JSON file ({e})"
-        ) from None
-    arm = config.get("body_parts", {}).get("right", {}) if isinstance(config, dict) else {}
+    arm = config.get("body_parts", {}).get("right", {})
     if arm.get("type") != "OSC_POSE":
-        raise SystemExit(
-            f"veragmil-collect: {value} drives the arm with {arm.get('type')!r}; collection needs OSC_POSE deltas"
+        raise UsageError(
+            f"--controller {value}: drives {robot}'s arm with {arm.get('type')!r}; collection needs OSC_POSE"
         )
+    if absolute:
+        arm.update(input_type="absolute", input_ref_frame="world")
     return config
 
 
@@ -212,10 +326,12 @@ class TeleopOperator:
 
     source = "human"
 
-    def __init__(self, env, device, name: str):
+    def __init__(self, env, device, name: str, arm: str = "right", goal_update_mode: str = "target"):
         self.env = env
         self.device = device
         self.name = name
+        self.arm = arm
+        self.goal_update_mode = goal_update_mode
         self.command = None
         self.label = None  # the action executed is the one recorded
 
@@ -240,15 +356,16 @@ class TeleopOperator:
     def action(self, obs: dict) -> np.ndarray | None:
         if self.ended:
             return None
-        action_dict = self.device.input2action()
+        # robosuite's devices take goal_update_mode; "target" is their default, which any device gives
+        mode = {} if self.goal_update_mode == "target" else {"goal_update_mode": self.goal_update_mode}
+        action_dict = self.device.input2action(**mode)
         if action_dict is None:
             self.command = getattr(self.device, "episode_command", None) or "reset"
             return None
         robot = self.env.robots[0]
-        arm = robot.arms[0]
-        controller = robot.part_controllers[arm]
-        key = f"{arm}_delta" if getattr(controller, "input_type", "delta") == "delta" else f"{arm}_abs"
-        return robot.create_action_vector({arm: action_dict[key]})
+        controller = robot.part_controllers[self.arm]
+        key = f"{self.arm}_delta" if getattr(controller, "input_type", "delta") == "delta" else f"{self.arm}_abs"
+        return robot.create_action_vector({self.arm: action_dict[key]})
 
     def wait_for_verdict(self) -> str | None:
         """VR: after an episode ended by itself, wait for the operator's keep or discard button."""
@@ -284,35 +401,59 @@ class TeleopOperator:
         return "vr server: " + (", ".join(counts) or "no page connected")
 
 
-def make_operator(args, env):
-    """The operator for ``--device``; a clear SystemExit when its hardware or display is missing."""
-    if args.device == "scripted":
-        return ScriptedOperator(env, args.profile, args.seed)
+def make_device(args, env):
+    """The teleoperation device for ``--device``, built as robosuite's collect_human_demonstrations.py builds it
+    (robosuite's own classes) or our VRDevice; UsageError when its hardware cannot be opened."""
+    sensitivity = dict(pos_sensitivity=args.pos_sensitivity, rot_sensitivity=args.rot_sensitivity)
     if args.device == "keyboard":
-        if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-            raise SystemExit("veragmil-collect: keyboard teleoperation needs a display (no DISPLAY is set)")
         from robosuite.devices import Keyboard
 
-        device = Keyboard(env=env, pos_sensitivity=args.pos_sensitivity, rot_sensitivity=args.rot_sensitivity)
-    elif args.device == "spacemouse":
-        from robosuite.devices import SpaceMouse
-
+        return Keyboard(env=env, **sensitivity)
+    if args.device in ("spacemouse", "dualsense"):
+        name = {"spacemouse": "SpaceMouse", "dualsense": "DualSense"}[args.device]
         try:
-            device = SpaceMouse(env=env, pos_sensitivity=args.pos_sensitivity, rot_sensitivity=args.rot_sensitivity)
-        except (OSError, ImportError) as e:
-            raise SystemExit(f"veragmil-collect: no SpaceMouse found through hidapi ({e})") from None
-    else:
-        from veragmil_suite.devices import VRDevice, VRServerOptions
+            import robosuite.devices
 
-        device = VRDevice(
-            env,
-            server=VRServerOptions(host=args.vr_host, port=args.vr_port),
-            pos_sensitivity=args.pos_sensitivity,
-            rot_sensitivity=args.rot_sensitivity,
-            allow_emulated_position=args.vr_allow_emulated,
-            verbose=not args.quiet,
-        )
-    return TeleopOperator(env, device, args.operator or "")
+            device_class = getattr(robosuite.devices, name)  # absent when hidapi is missing
+            extra = {"reverse_xy": args.reverse_xy} if args.device == "dualsense" else {}
+            return device_class(env=env, **sensitivity, **extra)
+        except (OSError, ImportError, AttributeError) as e:
+            raise UsageError(f"--device {args.device}: no {name} found through hidapi ({e})") from None
+    if args.device == "mjgui":
+        from robosuite.devices.mjgui import MJGUI
+
+        return MJGUI(env=env, active_end_effector=args.arm)
+    from veragmil_suite.devices import VRDevice, VRServerOptions
+
+    return VRDevice(
+        env,
+        server=VRServerOptions(host=args.vr_host, port=args.vr_port),
+        **sensitivity,
+        allow_emulated_position=args.vr_allow_emulated,
+        verbose=not args.quiet,
+    )
+
+
+def make_operator(args, env):
+    """The operator for ``--device``: the scripted expert, or a person on a device (make_device)."""
+    if args.device == "scripted":
+        return ScriptedOperator(env, args.profile, args.seed)
+    device = make_device(args, env)
+    return TeleopOperator(env, device, args.operator or "", arm=args.arm, goal_update_mode=args.goal_update_mode)
+
+
+class FrameCap:
+    """Paces a loop at no more than ``rate`` steps per second (robosuite's --max_fr): call it once per step."""
+
+    def __init__(self, rate: float):
+        self.period = 1.0 / rate
+        self.last: float | None = None
+
+    def __call__(self) -> None:
+        now = time.perf_counter()
+        if self.last is not None and now - self.last < self.period:
+            time.sleep(self.period - (now - self.last))
+        self.last = time.perf_counter()
 
 
 # ---------------------------------------------------------------------------------------------------------------- #
@@ -321,13 +462,22 @@ def make_operator(args, env):
 
 
 def run_episode(
-    env, recorder, operator, success_hold_s: float, render: bool, realtime: bool, seed: int | None = None
+    env,
+    recorder,
+    operator,
+    success_hold_s: float,
+    render: bool,
+    realtime: bool,
+    seed: int | None = None,
+    pace: FrameCap | None = None,
 ) -> str:
     """Record one episode (env and operator seeded with ``seed``) through the shared episode loop
     (veragmil_suite.episode); returns why it ended: "success", "horizon", "operator" (a human stopped), "gave up"
-    (the scripted operator did) or "physics". A ``success_hold_s`` <= 0 leaves success out of the ending rule."""
+    (the scripted operator did) or "physics". A ``success_hold_s`` <= 0 leaves success out of the ending rule.
+    ``pace`` caps the steps per second (--max-fr)."""
     obs = recorder.reset(seed=seed)
     operator.begin(seed=seed)
+    hooks = [hook for hook in (env.render if render else None, pace) if hook is not None]
     end = run_until_done(
         operator.action,
         lambda action: recorder.step(action, label=operator.label),
@@ -335,26 +485,28 @@ def run_episode(
         env.control_freq,
         env.horizon,
         success_hold_s=success_hold_s,
-        on_step=env.render if render else None,
+        on_step=(lambda: [hook() for hook in hooks]) if hooks else None,
         realtime=realtime,
         stopped="operator" if operator.source == "human" else "gave up",
     )
     return end.reason
 
 
-def record_attempt(env, recorder, operator, args, seed: int, render: bool = False, realtime: bool = False):
+def record_attempt(
+    env, recorder, operator, args, seed: int, render: bool = False, realtime: bool = False, pace: FrameCap | None = None
+):
     """One attempt with ``seed``: (seed, why it ended, the Episode, or None when no step was taken)."""
-    reason = run_episode(env, recorder, operator, args.success_hold, render, realtime, seed=seed)
+    reason = run_episode(env, recorder, operator, args.success_hold, render, realtime, seed=seed, pace=pace)
     if not recorder.num_steps:
         return seed, reason, None
     return seed, reason, recorder.episode(attrs=dict(end_reason=reason, pile_variant=int(env.pile_variant), seed=seed))
 
 
-def local_attempts(env, recorder, operator, args, render: bool, realtime: bool):
+def local_attempts(env, recorder, operator, args, render: bool, realtime: bool, pace: FrameCap | None = None):
     """Attempts in this process, one at a time, seeds SEED, SEED + 1, ...: yields record_attempt's tuples."""
     seed = args.seed
     while True:
-        yield record_attempt(env, recorder, operator, args, seed, render, realtime)
+        yield record_attempt(env, recorder, operator, args, seed, render, realtime, pace)
         seed += 1
 
 
@@ -390,7 +542,7 @@ def _worker_attempt(context: tuple, seed: int):
 
 def parallel_attempts(args, env_kwargs: dict, piles: dict | None = None):
     """
-    Scripted attempts in ``args.workers`` processes, or as Ray tasks (``args.ray``) on the driver's settled
+    Scripted attempts in ``args.processes`` processes, or as Ray tasks (``args.ray``) on the driver's settled
     ``piles``, yielded in seed order like local_attempts (a few attempts run ahead; those not needed are cancelled
     or dropped when the caller stops).
     """
@@ -402,7 +554,7 @@ def parallel_attempts(args, env_kwargs: dict, piles: dict | None = None):
             _worker_attempt,
             itertools.count(args.seed),
             context=(args, env_kwargs, piles),
-            processes=args.workers,
+            processes=args.processes,
             on_ray=on_ray,
             ordered=True,
             setup=None if on_ray else _ignore_sigint,
@@ -435,24 +587,13 @@ def episode_line(n: int, metrics: dict, steps: int, reason: str) -> str:
     return line + (f"; physics: {m['physics_error']}" if m["physics_error"] else "")
 
 
-def main(argv: list[str] | None = None) -> int:
+@command(build_parser)
+def main(args: argparse.Namespace) -> int:
     """veragmil-collect: record demonstrations (see --help)."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    if args.episodes < 1:
-        raise SystemExit("veragmil-collect: --episodes must be at least 1")
-    if args.workers < 1:
-        raise SystemExit(f"veragmil-collect: --workers must be at least 1, got {args.workers}")
-    if args.workers > 1 and args.device != "scripted":
-        raise SystemExit(
-            f"veragmil-collect: --workers {args.workers} needs --device scripted (one person drives one device)"
-        )
-    if args.ray is not None and args.device != "scripted":
-        raise SystemExit("veragmil-collect: --ray needs --device scripted (one person drives one device)")
-    check_ray_argument(parser, args)
+    check_args(args)
     if not os.environ.get("DISPLAY"):
         os.environ.setdefault("PYNPUT_BACKEND", "dummy")  # robosuite.devices imports pynput, which wants X
-    if args.cameras:
+    if args.camera_names:
         from veragmil_suite.rendering import use_headless_rendering
 
         use_headless_rendering()
@@ -468,59 +609,58 @@ def main(argv: list[str] | None = None) -> int:
     max_attempts = args.max_attempts or (3 * args.episodes + 2 if args.device == "scripted" else None)
     source = "scripted" if args.device == "scripted" else "human"
     operator_name = args.operator or (f"scripted-{args.profile}" if source == "scripted" else "unspecified")
+    output = output_path(args)
 
     env_kwargs = env_kwargs_from_args(args)
-    try:
-        writer = recording.DemoWriter(
-            args.output,
-            recording.env_meta(env_kwargs),
-            recording.provenance(
-                device=args.device,
-                operator=operator_name,
-                food=args.food,
-                robot=args.robot,
-                source=source,
-                controller=args.controller,
-                control_freq=args.control_freq,
-                env_seed=args.seed,
-                profile=args.profile if source == "scripted" else "",
-            ),
-            valid_ratio=args.valid_ratio,
-        )
-    except recording.DatasetError as e:
-        print(f"veragmil-collect: {e}", file=sys.stderr)
-        return 2
+    writer = recording.DemoWriter(
+        output,
+        recording.env_meta(env_kwargs),
+        recording.provenance(
+            device=args.device,
+            operator=operator_name,
+            food=args.food,
+            robot=args.robots,
+            source=source,
+            controller=args.controller,
+            control_freq=args.control_freq,
+            env_seed=args.seed,
+            profile=args.profile if source == "scripted" else "",
+        ),
+        valid_ratio=args.valid_ratio,
+    )
     last = max(writer.seeds_used, default=None)
     if args.seed is None:
         args.seed = 0 if last is None else last + 1
     elif last is not None and args.seed <= last:
         writer.close()
-        print(
-            f"veragmil-collect: {args.output} already holds attempts with seeds up to {last} (attempt k runs with "
-            f"seed SEED + k, and a seed gives the same episode again): --seed {args.seed} would repeat them; omit "
-            f"--seed to continue from {last + 1}, or pass a seed above {last}",
-            file=sys.stderr,
+        raise UsageError(
+            f"{output} already holds attempts with seeds up to {last} (attempt k runs with seed SEED + k, and a "
+            f"seed gives the same episode again): --seed {args.seed} would repeat them; omit --seed to continue "
+            f"from {last + 1}, or pass a seed above {last}"
         )
-        return 2
     writer.provenance["env_seed"] = args.seed
 
     # the environment is built here in every case: a bad setting is refused before anything is recorded (nothing is
     # written before the first episode), and with workers it settles the piles: local workers read them from the
     # disk cache, Ray workers are handed them
     operator = None
+    cameras = args.camera or args.camera_names[:1] or ["overhead"]
     try:
         env = robosuite.make(
-            "ScoopGranular",
+            args.environment,
             **env_kwargs,
-            has_renderer=render and args.workers == 1,
-            render_camera=args.cameras[0] if args.cameras else "overhead",
+            has_renderer=render and args.processes == 1,
+            renderer=args.renderer,
+            render_camera=cameras[0] if len(cameras) == 1 else cameras,
             seed=args.seed,
         )
     except ValueError as e:
         writer.close()
-        print(f"veragmil-collect: {e}", file=sys.stderr)
-        return 2
-    if args.workers > 1 or args.ray is not None:
+        raise UsageError(str(e)) from None
+    if args.directory is not None:
+        os.makedirs(os.path.dirname(output), exist_ok=True)  # robosuite's layout: a new folder per run
+    pace = FrameCap(args.max_fr) if args.max_fr is not None else None
+    if args.processes > 1 or args.ray is not None:
         piles = env.settled_piles() if args.ray is not None else None
         env.close()
         env = None
@@ -532,14 +672,14 @@ def main(argv: list[str] | None = None) -> int:
             writer.close()
             raise
         recorder = recording.EpisodeRecorder(env)
-        attempts_iter = local_attempts(env, recorder, operator, args, render, realtime=source == "human")
+        realtime = source == "human" and pace is None
+        attempts_iter = local_attempts(env, recorder, operator, args, render, realtime=realtime, pace=pace)
     kept, attempts, results = 0, 0, []
     if not args.quiet:
-        workers = f", {args.workers} workers" if args.workers > 1 else ""
+        workers = f", {args.processes} workers" if args.processes > 1 else ""
         workers = ", on Ray" if args.ray is not None else workers
         print(
-            f"recording {args.food} with {args.device} ({operator_name}) into {args.output}; keep: {keep_policy}"
-            + workers
+            f"recording {args.food} with {args.device} ({operator_name}) into {output}; keep: {keep_policy}" + workers
         )
     teleop = operator if isinstance(operator, TeleopOperator) else None
     discarded = 0
@@ -549,7 +689,7 @@ def main(argv: list[str] | None = None) -> int:
             if teleop is not None:
                 teleop.show_progress(
                     f"episode {attempts + 1} | kept {kept}/{args.episodes} | discarded {discarded} | "
-                    f"{os.path.basename(args.output)}"
+                    f"{os.path.basename(output)}"
                 )
             seed, reason, episode = next(attempts_iter)
             attempts += 1
@@ -558,14 +698,14 @@ def main(argv: list[str] | None = None) -> int:
             episode.attrs["attempt"] = attempts
             metrics = episode.metrics
             print(episode_line(attempts, metrics, episode.num_samples, reason), flush=True)
-            command = operator.command if operator is not None else None
-            if keep_policy == "ask" and command not in ("keep", "discard", "reset"):
+            said = operator.command if operator is not None else None
+            if keep_policy == "ask" and said not in ("keep", "discard", "reset"):
                 verdict = operator.wait_for_verdict() if isinstance(operator, TeleopOperator) else None
-                command = verdict or ("keep" if ask_keep("keep this episode? [Y/n] ") else "discard")
+                said = verdict or ("keep" if ask_keep("keep this episode? [Y/n] ") else "discard")
             keep = {
                 "all": True,
                 "success": bool(metrics["success"]),
-                "ask": command == "keep",
+                "ask": said == "keep",
             }[keep_policy]
             if isinstance(operator, TeleopOperator):
                 operator.end()
@@ -586,12 +726,12 @@ def main(argv: list[str] | None = None) -> int:
                 print("  discarded", flush=True)
     except KeyboardInterrupt:
         kept = len(writer.written)
-        print(f"\ninterrupted: the episode in progress is dropped; {kept} episodes saved to {args.output}")
+        print(f"\ninterrupted: the episode in progress is dropped; {kept} episodes saved to {output}")
     finally:
         attempts_iter.close()
         if teleop is not None:
             saved = len(writer.written)
-            teleop.close(farewell=f"{saved} demo{'' if saved == 1 else 's'} saved to {args.output}")
+            teleop.close(farewell=f"{saved} demo{'' if saved == 1 else 's'} saved to {output}")
             if not args.quiet and (line := teleop.connection_line()) is not None:
                 print(line)
         elif operator is not None:
@@ -599,7 +739,7 @@ def main(argv: list[str] | None = None) -> int:
         if env is not None:
             env.close()
         writer.close()
-    _print_summary(results, kept, args.output)
+    _print_summary(results, kept, output)
     if failed is not None:
         print(f"veragmil-collect: {failed}", file=sys.stderr)
         return 2

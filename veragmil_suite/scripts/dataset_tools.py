@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
 from veragmil_suite.datasets import (
@@ -24,15 +23,9 @@ from veragmil_suite.datasets import (
     replay_demos,
     split_dataset,
 )
-from veragmil_suite.recording import DatasetError
 from veragmil_suite.rendering import use_headless_rendering
-from veragmil_suite.scripts.cli import positive_int
-
-
-def _fail(tool: str, error: Exception) -> int:
-    print(f"{tool}: {error}", file=sys.stderr)
-    return 2
-
+from veragmil_suite.scripts import cli
+from veragmil_suite.scripts.cli import Parser, UsageError, command
 
 # ---------------------------------------------------------------------------------------------------------------- #
 # info                                                                                                             #
@@ -108,25 +101,24 @@ def format_summary(s: dict, verbose: bool = False) -> str:
     return "\n".join(lines)
 
 
-def info_main(argv: list[str] | None = None) -> int:
-    """veragmil-dataset-info: summarize demonstration files."""
-    p = argparse.ArgumentParser(
-        prog="veragmil-dataset-info", description="Summarize ScoopGranular demonstration files."
-    )
-    p.add_argument("datasets", nargs="+", help="HDF5 files")
+def build_info_parser() -> Parser:
+    p = Parser("veragmil-dataset-info", description="Summarize ScoopGranular demonstration files.")
+    p.add_input("dataset", "--dataset", cli.dataset, many=True, help="HDF5 files")
     p.add_argument("--verbose", "-v", action="store_true", help="one line per demo")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.add_argument("--clean", action="store_true", help="remove what interrupted writes left (never a finished demo)")
-    args = p.parse_args(argv)
+    return p
+
+
+@command(build_info_parser)
+def info_main(args: argparse.Namespace) -> int:
+    """veragmil-dataset-info: summarize demonstration files."""
     out = []
-    for path in args.datasets:
-        try:
-            if args.clean:
-                removed = clean_dataset(path)
-                print(f"{path}: removed {', '.join(removed)}" if removed else f"{path}: nothing to clean")
-            summary = dataset_summary(path)
-        except DatasetError as e:
-            return _fail("veragmil-dataset-info", e)
+    for path in args.dataset:
+        if args.clean:
+            removed = clean_dataset(path)
+            print(f"{path}: removed {', '.join(removed)}" if removed else f"{path}: nothing to clean")
+        summary = dataset_summary(path)
         if not args.verbose:
             summary.pop("demo_list")
         out.append(summary)
@@ -142,46 +134,63 @@ def info_main(argv: list[str] | None = None) -> int:
 # ---------------------------------------------------------------------------------------------------------------- #
 
 
-def merge_main(argv: list[str] | None = None) -> int:
-    """veragmil-merge: merge demonstration files into a new one."""
-    p = argparse.ArgumentParser(
-        prog="veragmil-merge",
+def _refuse_existing(path: str, force: bool) -> None:
+    if Path(path).exists() and not force:
+        raise UsageError(f"{path} exists (use --force to overwrite it)")
+
+
+def build_merge_parser() -> Parser:
+    p = Parser(
+        "veragmil-merge",
         description="Merge ScoopGranular demonstration files into a new file (demos renumbered demo_0...; each "
         "keeps its food, device, operator and metrics; the attempt logs are joined; masks are redone).",
     )
-    p.add_argument("inputs", nargs="+", help="HDF5 files to merge, in order")
-    p.add_argument("--output", "-o", required=True, help="the merged file (must not exist unless --force)")
-    p.add_argument("--valid-ratio", type=float, default=0.1, help="fraction of demos in mask/valid")
+    p.add_input("inputs", "--dataset", cli.dataset, many=True, help="HDF5 files to merge, in order")
+    p.add_argument(
+        "--output", "-o", type=cli.output_dataset, required=True, help="the merged file (must not exist unless --force)"
+    )
+    p.add_argument("--valid-ratio", type=cli.fraction_below_one, default=0.1, help="fraction of demos in mask/valid")
     p.add_argument("--force", action="store_true", help="overwrite --output")
-    args = p.parse_args(argv)
-    if Path(args.output).exists() and not args.force:
-        return _fail("veragmil-merge", DatasetError(f"{args.output} exists (use --force to overwrite it)"))
-    try:
-        n = merge_datasets(args.inputs, args.output, args.valid_ratio)
-    except DatasetError as e:
-        return _fail("veragmil-merge", e)
+    return p
+
+
+@command(build_merge_parser)
+def merge_main(args: argparse.Namespace) -> int:
+    """veragmil-merge: merge demonstration files into a new one."""
+    _refuse_existing(args.output, args.force)
+    n = merge_datasets(args.inputs, args.output, args.valid_ratio)
     print(f"merged {n} demos from {len(args.inputs)} files into {args.output}")
     return 0
 
 
-def split_main(argv: list[str] | None = None) -> int:
-    """veragmil-split: redo the train/valid split."""
-    p = argparse.ArgumentParser(
-        prog="veragmil-split",
+def build_split_parser() -> Parser:
+    p = Parser(
+        "veragmil-split",
         description="Split a demonstration file into train and valid demos (robomimic's mask/train, mask/valid), "
         "in place.",
     )
-    p.add_argument("dataset", help="HDF5 file")
-    p.add_argument("--ratio", type=float, default=0.1, help="fraction of demos for validation")
-    p.add_argument("--seed", type=int, default=0, help="seed of the shuffle")
+    p.add_input("dataset", "--dataset", cli.dataset, help="HDF5 file")
     p.add_argument(
-        "--filter-key", default=None, help="split only these demos (e.g. success, rice), into <key>_train/_valid"
+        "--valid-ratio",
+        aliases=["--ratio"],
+        type=cli.fraction_below_one,
+        default=0.1,
+        help="fraction of demos for validation",
     )
-    args = p.parse_args(argv)
-    try:
-        n_train, n_valid = split_dataset(args.dataset, args.ratio, args.seed, args.filter_key)
-    except DatasetError as e:
-        return _fail("veragmil-split", e)
+    p.add_argument("--seed", type=cli.seed, default=0, help="seed of the shuffle")
+    p.add_argument(
+        "--filter-key",
+        type=cli.text,
+        default=None,
+        help="split only these demos (e.g. success, rice), into <key>_train/_valid",
+    )
+    return p
+
+
+@command(build_split_parser)
+def split_main(args: argparse.Namespace) -> int:
+    """veragmil-split: redo the train/valid split."""
+    n_train, n_valid = split_dataset(args.dataset, args.valid_ratio, args.seed, args.filter_key)
     prefix = f"{args.filter_key}_" if args.filter_key else ""
     print(f"{args.dataset}: mask/{prefix}train {n_train} demos, mask/{prefix}valid {n_valid} demos")
     return 0
@@ -192,42 +201,49 @@ def split_main(argv: list[str] | None = None) -> int:
 # ---------------------------------------------------------------------------------------------------------------- #
 
 
-def replay_main(argv: list[str] | None = None) -> int:
-    """veragmil-replay: replay demonstrations to a video."""
-    p = argparse.ArgumentParser(
-        prog="veragmil-replay",
+def build_replay_parser() -> Parser:
+    p = Parser(
+        "veragmil-replay",
         description="Replay demos of a ScoopGranular file to an mp4: from the recorded states (default), or by "
         "replaying the actions open loop from the first state, which also checks that replay reproduces the states.",
     )
-    p.add_argument("dataset", help="HDF5 file")
-    p.add_argument("--output", "-o", default=None, help="mp4 to write (all selected demos in sequence)")
-    p.add_argument("--demos", nargs="+", default=None, help="demo names (default: all)")
-    p.add_argument("--n", type=positive_int, default=None, help="only the first N selected demos")
-    p.add_argument("--camera", default="agentview", help="camera to render (overhead, agentview, frontview, ...)")
-    p.add_argument("--size", type=positive_int, nargs="+", default=[480, 640], metavar="PX", help="height [width]")
-    p.add_argument("--fps", type=float, default=None, help="video frame rate (default: real time)")
-    p.add_argument("--skip", type=positive_int, default=1, help="render every k-th step")
+    p.add_input("dataset", "--dataset", cli.dataset, help="HDF5 file")
+    p.add_argument(
+        "--output",
+        "-o",
+        aliases=["--video-path"],
+        type=cli.output_video,
+        default=None,
+        help="mp4 to write (all selected demos in sequence)",
+    )
+    p.add_argument("--demos", type=cli.ListOf(cli.demo_name), default=None, help="demo names (default: all)")
+    p.add_argument("--n", type=cli.count, default=None, help="only the first N selected demos")
+    p.add_argument("--camera", type=cli.camera, default="agentview", help="camera to render")
+    cli.add_image_size(p, 480, 640, old=["--size"])
+    p.add_argument("--fps", type=cli.positive, default=None, help="video frame rate (default: real time)")
+    p.add_argument("--video-skip", aliases=["--skip"], type=cli.count, default=1, help="render every k-th step")
     p.add_argument("--use-actions", action="store_true", help="replay actions open loop and report the state error")
-    args = p.parse_args(argv)
+    return p
+
+
+@command(build_replay_parser)
+def replay_main(args: argparse.Namespace) -> int:
+    """veragmil-replay: replay demonstrations to a video."""
     if args.output is None and not args.use_actions:
-        p.error("give --output (a video) and/or --use-actions (a replay check)")
+        raise UsageError("give --output (a video) and/or --use-actions (a replay check)")
     use_headless_rendering()
-    height, width = (args.size * 2)[:2]
-    try:
-        results = replay_demos(
-            args.dataset,
-            args.output,
-            args.demos,
-            args.n,
-            args.camera,
-            height,
-            width,
-            args.fps,
-            args.skip,
-            args.use_actions,
-        )
-    except DatasetError as e:
-        return _fail("veragmil-replay", e)
+    results = replay_demos(
+        args.dataset,
+        args.output,
+        args.demos,
+        args.n,
+        args.camera,
+        args.camera_height,
+        args.camera_width,
+        args.fps,
+        args.video_skip,
+        args.use_actions,
+    )
     for r in results:
         line = f"{r['demo']}: {r['steps']} steps"
         if "max_state_error" in r:
@@ -243,28 +259,34 @@ def replay_main(argv: list[str] | None = None) -> int:
     return 0 if all(r.get("max_state_error", 0.0) == 0.0 for r in results) else 1
 
 
-def render_obs_main(argv: list[str] | None = None) -> int:
-    """veragmil-render-obs: re-render camera observations from the states."""
-    p = argparse.ArgumentParser(
-        prog="veragmil-render-obs",
+def build_render_obs_parser() -> Parser:
+    p = Parser(
+        "veragmil-render-obs",
         description="Write a copy of a ScoopGranular dataset whose camera observations (<camera>_image, "
         "<camera>_depth) are re-rendered from the recorded states, for other cameras or image sizes.",
     )
-    p.add_argument("dataset", help="HDF5 file")
-    p.add_argument("--output", "-o", required=True, help="new HDF5 file")
-    p.add_argument("--cameras", nargs="+", default=["overhead"], help="cameras to render")
-    p.add_argument("--size", type=positive_int, nargs="+", default=[84], metavar="PX", help="height [width]")
+    p.add_input("dataset", "--dataset", cli.dataset, help="HDF5 file")
+    p.add_argument("--output", "-o", type=cli.output_dataset, required=True, help="new HDF5 file")
+    p.add_argument(
+        "--camera-names",
+        aliases=["--cameras"],
+        type=cli.ListOf(cli.camera),
+        default=["overhead"],
+        help="cameras to render",
+    )
+    cli.add_image_size(p, 84, 84, old=["--size"])
     p.add_argument("--depth", action="store_true", help="also render <camera>_depth")
-    p.add_argument("--demos", nargs="+", default=None, help="only these demos")
+    p.add_argument("--demos", type=cli.ListOf(cli.demo_name), default=None, help="only these demos")
     p.add_argument("--force", action="store_true", help="overwrite --output")
-    args = p.parse_args(argv)
-    if Path(args.output).exists() and not args.force:
-        return _fail("veragmil-render-obs", DatasetError(f"{args.output} exists (use --force to overwrite it)"))
+    return p
+
+
+@command(build_render_obs_parser)
+def render_obs_main(args: argparse.Namespace) -> int:
+    """veragmil-render-obs: re-render camera observations from the states."""
+    _refuse_existing(args.output, args.force)
     use_headless_rendering()
-    height, width = (args.size * 2)[:2]
-    try:
-        n = render_observations(args.dataset, args.output, args.cameras, height, width, args.depth, args.demos)
-    except DatasetError as e:
-        return _fail("veragmil-render-obs", e)
-    print(f"wrote {n} demos with {', '.join(args.cameras)} at {height}x{width} to {args.output}")
+    height, width = args.camera_height, args.camera_width
+    n = render_observations(args.dataset, args.output, args.camera_names, height, width, args.depth, args.demos)
+    print(f"wrote {n} demos with {', '.join(args.camera_names)} at {height}x{width} to {args.output}")
     return 0

@@ -14,68 +14,62 @@ settled on this machine.
 from __future__ import annotations
 
 import argparse
-import inspect
-import json
 import sys
 
 from veragmil_suite.distributed import add_ray_argument, check_ray_argument
 from veragmil_suite.evaluation import ALL_FOODS, DEFAULT_VIDEO_CAMERA, SPEC_HELP, evaluate, parse_agent_argument
-from veragmil_suite.scripts.cli import non_negative_int, positive_int
+from veragmil_suite.scripts import cli
+from veragmil_suite.scripts.cli import Parser, UsageError, command
+
+# ScoopGranular arguments this program sets from its own options
+RESERVED_ENV_KWARGS = {"food": "--foods", "seed": "--seed", "horizon": "--horizon", "robots": "--robots"}
 
 
-def _env_kwargs(text: str) -> dict:
-    try:
-        value = json.loads(text)
-    except json.JSONDecodeError as e:
-        raise argparse.ArgumentTypeError(f"not JSON: {e}") from e
-    if not isinstance(value, dict):
-        raise argparse.ArgumentTypeError("must be a JSON object of robosuite.make keyword arguments")
-    from veragmil_suite.environments.scoop import ScoopGranular
-
-    accepted = [name for name in inspect.signature(ScoopGranular.__init__).parameters if name != "self"]
-    unknown = sorted(set(value) - set(accepted))
-    if unknown:
-        raise argparse.ArgumentTypeError(
-            f"unknown ScoopGranular argument(s) {', '.join(unknown)}; accepted: {', '.join(accepted)}"
-        )
-    return value
-
-
-def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
-        prog="veragmil-evaluate",
+def build_parser() -> Parser:
+    p = Parser(
+        "veragmil-evaluate",
         description=__doc__.split("\n\n")[0].strip(),
         epilog=__doc__.split("\n\n", 1)[1],
-        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument(
         "--agent",
         action="append",
+        type=cli.agent,
         required=True,
         metavar="NAME=SPEC",
         help=f"an agent column (repeat for more): SPEC is {SPEC_HELP}; without NAME= it is named after SPEC",
     )
-    p.add_argument("--foods", nargs="+", default=list(ALL_FOODS), help=f"foods (default: all, {' '.join(ALL_FOODS)})")
-    p.add_argument("--episodes", type=positive_int, default=10, help="episodes per agent and food (default 10)")
+    p.add_argument("--foods", type=cli.ListOf(cli.food), default=list(ALL_FOODS), help="foods")
+    p.add_argument("--episodes", type=cli.count, default=10, help="episodes per agent and food")
     p.add_argument(
         "--processes",
-        type=positive_int,
+        type=cli.count,
         default=2,
-        help="parallel worker processes (default 2; with --ray, the least number of episodes in flight)",
+        help="parallel worker processes (with --ray, the least number of episodes in flight)",
     )
-    p.add_argument("--output-dir", required=True, help="folder for the tables, plot, episodes and videos")
-    p.add_argument("--seed", type=int, default=0, help="episode i runs with env seed SEED + i (default 0)")
-    p.add_argument("--horizon", type=positive_int, default=None, help="steps per episode (default: the env's)")
-    p.add_argument("--videos", type=non_negative_int, default=0, help="save the first K episodes per agent and food")
-    p.add_argument("--video-camera", default=DEFAULT_VIDEO_CAMERA, help="camera of the videos (default overhead)")
+    p.add_argument(
+        "--output-dir", type=cli.output_folder, required=True, help="folder for the tables, plot, episodes and videos"
+    )
+    p.add_argument("--seed", type=cli.seed, default=0, help="episode i runs with env seed SEED + i")
+    p.add_argument("--horizon", type=cli.count, default=None, help="steps per episode (default: the env's)")
+    p.add_argument("--videos", type=cli.count_or_zero, default=0, help="save the first K episodes per agent and food")
+    p.add_argument(
+        "--camera",
+        aliases=["--video-camera"],
+        type=cli.camera,
+        default=DEFAULT_VIDEO_CAMERA,
+        help="camera of the videos",
+    )
     p.add_argument(
         "--env-kwargs",
-        type=_env_kwargs,
+        type=cli.EnvKwargs(reserved=RESERVED_ENV_KWARGS),
         default=None,
         help="JSON of robosuite.make keyword arguments for every env, e.g. '{\"n_grains\": 12}'",
     )
     p.add_argument(
-        "--robot",
+        "--robots",
+        aliases=["--robot"],
+        type=cli.robot,
         default=None,
         help="the robot every agent scoops with (default: the checkpoints', else XArm7; G1FixedLowerBody: the G1)",
     )
@@ -90,26 +84,25 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    check_ray_argument(parser, args)
-    from veragmil_suite.evaluation import check_foods
-
+@command(build_parser)
+def main(args: argparse.Namespace) -> int:
+    check_ray_argument(args)
     agents: dict[str, str] = {}
-    try:
-        check_foods(args.foods)
-        for text in args.agent:
-            name, spec = parse_agent_argument(text)
-            if name in agents:
-                raise ValueError(f"two agents are named {name!r}: give each a NAME= of its own")
-            agents[name] = spec
-    except ValueError as e:
-        parser.error(str(e))
+    for text in args.agent:
+        name, spec = parse_agent_argument(text)
+        if name in agents:
+            raise UsageError(f"two agents are named {name!r}: give each a NAME= of its own")
+        agents[name] = spec
+    if args.env_kwargs and "n_grains" in args.env_kwargs:
+        for food in args.foods:  # the grain count's limit is each food's own
+            try:
+                cli.check_env_kwargs({**args.env_kwargs, "food": food})
+            except argparse.ArgumentTypeError as e:
+                raise UsageError(f"--env-kwargs: {e}") from None
     try:
         result = _evaluate(agents, args)
     except ValueError as e:
-        parser.error(str(e))
+        raise UsageError(str(e)) from None
     print(result.markdown())
     print(f"written to {args.output_dir}")
     return 0
@@ -118,7 +111,7 @@ def main(argv: list[str] | None = None) -> int:
 def _evaluate(agents: dict[str, str], args: argparse.Namespace):
     return evaluate(
         agents,
-        foods=args.foods,
+        foods=list(dict.fromkeys(args.foods)),
         episodes=args.episodes,
         processes=args.processes,
         seed=args.seed,
@@ -127,9 +120,9 @@ def _evaluate(agents: dict[str, str], args: argparse.Namespace):
         output_dir=args.output_dir,
         progress=not args.quiet,
         env_kwargs=args.env_kwargs,
-        video_camera=args.video_camera,
+        video_camera=args.camera,
         ray=args.ray,
-        robot=args.robot,
+        robot=args.robots,
         resume=args.resume,
         say=print,
     )

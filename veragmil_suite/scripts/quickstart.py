@@ -14,7 +14,8 @@ import sys
 
 from veragmil_suite.asset_paths import pretrained_checkpoint
 from veragmil_suite.pipeline import PipelineSettings
-from veragmil_suite.scripts.study import add_pipeline_arguments, run
+from veragmil_suite.scripts.cli import Parser, command
+from veragmil_suite.scripts.study import INTERRUPTED, add_pipeline_arguments, run
 
 # BC trained by veragmil-study on 30 noise-injected expert demos per training food for 50k gradient steps
 # (models/checkpoints)
@@ -22,12 +23,8 @@ PRETRAINED = "bc_expert-dart_30demos_50k.pth"
 PRETRAINED_NAME = "pretrained DART BC 50k"
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        prog="veragmil-quickstart",
-        description=__doc__.split("\n\n")[1].strip(),
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
-    )
+def build_parser() -> Parser:
+    parser = Parser("veragmil-quickstart", description=__doc__.split("\n\n")[1].strip())
     shipped = pretrained_checkpoint(PRETRAINED)
     defaults = PipelineSettings(
         output_dir="runs/quickstart",
@@ -37,7 +34,12 @@ def main(argv: list[str] | None = None) -> int:
         agents={PRETRAINED_NAME: str(shipped)} if shipped else {},
     )
     add_pipeline_arguments(parser, defaults)
-    return run(parser, argv)
+    return parser
+
+
+@command(build_parser, interrupted=INTERRUPTED)
+def main(args: argparse.Namespace) -> int:
+    return run(args, "veragmil-quickstart")
 
 
 if __name__ == "__main__":

@@ -3,8 +3,11 @@ Console entry points that run robomimic's own scripts (train, run_trained_agent,
 playback_dataset, dataset_states_to_obs) on our environment, with their own command lines.
 
 Each one installs the compatibility layer (veragmil_suite.robomimic_compat), which also registers ScoopGranular,
-then runs the script's ``if __name__ == "__main__":`` block in the script's own module. A failed run exits
-non-zero (robomimic's train.py catches its errors and would exit 0) and nothing ever waits on a prompt.
+parses its command line with the script's own parser (robomimic's option names; dashed spellings accepted too),
+each option given a kind of value (veragmil_suite.scripts.cli) so that a bad value, a missing or foreign file is
+one line and exit 2 before anything runs, then runs the script's ``if __name__ == "__main__":`` block in the
+script's own module on those arguments. A failed run exits non-zero (robomimic's train.py catches its errors and
+would exit 0) and nothing ever waits on a prompt.
 
     veragmil-train --config configs/json/bc.json --dataset demos/scoop.hdf5
     python -m veragmil_suite.scripts.robomimic_entry train --config ...   (same, without the console script)
@@ -12,15 +15,16 @@ non-zero (robomimic's train.py catches its errors and would exit 0) and nothing 
 
 from __future__ import annotations
 
-import ast
+import argparse
 import importlib
-import inspect
-import json
+import os
 import sys
 from collections.abc import Callable
-from pathlib import Path
+from dataclasses import dataclass, field
 
 from veragmil_suite import robomimic_compat
+from veragmil_suite.scripts import cli
+from veragmil_suite.scripts.cli import UsageError
 
 SCRIPTS = {
     "train": "robomimic.scripts.train",
@@ -29,111 +33,164 @@ SCRIPTS = {
     "playback": "robomimic.scripts.playback_dataset",
     "states-to-obs": "robomimic.scripts.dataset_states_to_obs",
 }
-# per script: its console name, and the options whose value must be an existing file
-FILE_OPTIONS = {
-    "robomimic.scripts.train": ("veragmil-train", ("--config", "--dataset")),
-    "robomimic.scripts.run_trained_agent": ("veragmil-run-agent", ("--agent",)),
-    "robomimic.scripts.get_dataset_info": ("veragmil-robomimic-dataset-info", ("--dataset",)),
-    "robomimic.scripts.playback_dataset": ("veragmil-robomimic-playback", ("--dataset",)),
-    "robomimic.scripts.dataset_states_to_obs": ("veragmil-robomimic-states-to-obs", ("--dataset",)),
+
+
+@dataclass(frozen=True)
+class Script:
+    """A robomimic script as a console program: its name here, and the kind (veragmil_suite.scripts.cli) of each of
+    its options that takes a value, by robomimic's name for it."""
+
+    module: str
+    prog: str
+    kinds: dict[str, cli.Kind] = field(default_factory=dict)
+
+
+_CAMERAS = cli.ListOf(cli.camera)
+PROGRAMS = {
+    "robomimic.scripts.train": Script(
+        "robomimic.scripts.train",
+        "veragmil-train",
+        {
+            "--config": cli.robomimic_config,
+            "--algo": cli.robomimic_algo,
+            "--name": cli.text,
+            "--dataset": cli.robomimic_dataset,
+        },
+    ),
+    "robomimic.scripts.run_trained_agent": Script(
+        "robomimic.scripts.run_trained_agent",
+        "veragmil-run-agent",
+        {
+            "--agent": cli.checkpoint,
+            "--n_rollouts": cli.count,
+            "--horizon": cli.count,
+            "--env": cli.environment,
+            "--video_path": cli.output_video,
+            "--video_skip": cli.count,
+            "--camera_names": _CAMERAS,
+            "--dataset_path": cli.output_dataset,
+            "--seed": cli.seed,
+        },
+    ),
+    "robomimic.scripts.get_dataset_info": Script(
+        "robomimic.scripts.get_dataset_info",
+        "veragmil-robomimic-dataset-info",
+        {"--dataset": cli.robomimic_dataset, "--filter_key": cli.text},
+    ),
+    "robomimic.scripts.playback_dataset": Script(
+        "robomimic.scripts.playback_dataset",
+        "veragmil-robomimic-playback",
+        {
+            "--dataset": cli.robomimic_dataset,
+            "--filter_key": cli.text,
+            "--n": cli.count,
+            "--video_path": cli.output_video,
+            "--video_skip": cli.count,
+            "--render_image_names": _CAMERAS,
+        },
+    ),
+    "robomimic.scripts.dataset_states_to_obs": Script(
+        "robomimic.scripts.dataset_states_to_obs",
+        "veragmil-robomimic-states-to-obs",
+        {
+            "--dataset": cli.robomimic_dataset,
+            "--output_name": cli.file_name,
+            "--n": cli.count,
+            "--camera_names": _CAMERAS,
+            "--camera_height": cli.count,
+            "--camera_width": cli.count,
+            "--done_mode": cli.Integer(0, 2, accepted="0, 1 or 2 (robomimic's done modes)"),
+        },
+    ),
 }
 
 
-def _main_block(module) -> object:
-    """The compiled body of a script's ``if __name__ == "__main__":`` block (its argparse and its call)."""
-    path = inspect.getsourcefile(module)
-    with open(path) as f:
-        tree = ast.parse(f.read(), filename=path)
-    for node in tree.body:
-        test = node.test if isinstance(node, ast.If) else None
-        if (
-            isinstance(test, ast.Compare)
-            and isinstance(test.left, ast.Name)
-            and test.left.id == "__name__"
-            and isinstance(test.comparators[0], ast.Constant)
-            and test.comparators[0].value == "__main__"
-        ):
-            return compile(ast.Module(body=node.body, type_ignores=[]), path, "exec")
-    raise RuntimeError(f"{path} has no __main__ block to run")
-
-
-def _bad_file_arguments(program: str, argv: list[str], options: tuple[str, ...]) -> str | None:
-    """One line naming the first of ``options`` in ``argv`` whose file is missing or unreadable, else None: caught
-    before robomimic's script would fail on it with a traceback."""
-    for i, arg in enumerate(argv[:-1]):
-        if arg not in options:
+def build_parser(module_name: str) -> cli.Parser:
+    """robomimic's own parser of the script, with each option given its kind (PROGRAMS), adopted by our convention:
+    robomimic's names, shown with dashes (--n-rollouts), robomimic's spelling (--n_rollouts) accepted as well."""
+    script = PROGRAMS[module_name]
+    robomimic_compat.install()  # robomimic's scripts import mujoco_py, which the compatibility layer stands in for
+    parser = cli.script_parser(importlib.import_module(module_name))
+    kinds = {action: next((script.kinds[s] for s in action.option_strings if s in script.kinds), None)
+             for action in parser._actions}  # fmt: skip
+    cli.adopt(parser, script.prog)
+    for action in parser._actions:
+        kind = kinds[action]
+        if kind is None:
             continue
-        path = Path(argv[i + 1])
-        if path.is_dir():
-            return f"{program}: {arg} {path}: is a directory, not a file"
-        if not path.is_file():
-            return f"{program}: {arg} {path}: no such file"
-        if path.suffix == ".json":
-            try:
-                json.loads(path.read_text())
-            except (ValueError, UnicodeDecodeError) as e:
-                return f"{program}: {arg} {path}: not JSON ({e})"
-    return None
+        action.type = kind
+        if isinstance(kind, cli.ListOf):
+            action.__class__ = cli.Flatten
+    return parser
 
 
-def run_script(module_name: str, argv: list[str] | None = None, prepare: Callable | None = None) -> int:
-    """
-    Runs one robomimic script as its command line would, and returns the process exit code.
-
-    Args:
-        module_name: e.g. "robomimic.scripts.train"
-        argv: the script's arguments (default: this process's)
-        prepare: called with the imported script module before it runs; returns an object whose ``failed``
-            tells whether a run that returned normally failed anyway
-    """
-    args = sys.argv[1:] if argv is None else list(argv)
-    program, options = FILE_OPTIONS.get(module_name, ("veragmil", ()))
-    problem = _bad_file_arguments(program, args, options)
-    if problem is not None:
-        print(problem, file=sys.stderr)
-        return 2
-    robomimic_compat.install()
-    module = importlib.import_module(module_name)
-    outcome = prepare(module) if prepare is not None else None
-    code = _main_block(module)
-    saved_argv = sys.argv
-    sys.argv = [module.__file__, *args]
-    try:
-        with robomimic_compat.no_prompts():
-            exec(code, module.__dict__)
-    except SystemExit as stop:  # argparse: --help, bad arguments
-        return stop.code if isinstance(stop.code, int) else (0 if stop.code is None else 1)
-    finally:
-        sys.argv = saved_argv
-    if outcome is not None and outcome.failed:
-        print(f"veragmil: training failed: {outcome.error!r}", file=sys.__stderr__)
-        return 1
-    return 0
+def check_args(module_name: str, args: argparse.Namespace) -> None:
+    """What robomimic's scripts assert or fail on later, refused before they run: UsageError names the conflict."""
+    has_display = bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+    if module_name != "robomimic.scripts.train" and getattr(args, "dataset", "") is None:
+        raise UsageError("give --dataset FILE (a robomimic dataset)")
+    if getattr(args, "render", False):
+        if getattr(args, "video_path", None) is not None:
+            raise UsageError("give --render (on screen) or --video_path (a video), not both")
+        if not has_display:
+            raise UsageError("--render needs a display (no DISPLAY is set); write a video with --video_path instead")
+        names = getattr(args, "camera_names", None) or getattr(args, "render_image_names", None) or []
+        if len(names) > 1:
+            raise UsageError("--render shows one camera; give one with --camera_names / --render_image_names")
+    if module_name == "robomimic.scripts.train":
+        if args.config is None and args.algo is None:
+            raise UsageError("give --config FILE (a robomimic config) or --algo NAME (its default config)")
+        if args.config is not None and args.algo is not None:
+            raise UsageError("give --config or --algo, not both (the config names its algorithm)")
+        if args.dataset is None and args.config is not None:
+            data = cli.json_file(args.config).get("train", {}).get("data")
+            if data is not None:
+                cli.check_option("--config's train.data", data, cli.robomimic_dataset)
+    if module_name == "robomimic.scripts.playback_dataset" and args.use_obs:
+        if args.video_path is None:
+            raise UsageError("--use-obs plays the stored observations back into a video: give --video_path")
+        if args.use_actions:
+            raise UsageError("--use-obs plays stored observations, --use-actions replays actions: give one")
+    if module_name == "robomimic.scripts.dataset_states_to_obs":
+        output = os.path.join(os.path.dirname(args.dataset), args.output_name)
+        cli.check_option("--output_name", output, cli.output_dataset)
 
 
-def train_main(argv: list[str] | None = None) -> int:
-    """veragmil-train: robomimic's train.py (--config, --algo, --name, --dataset, --debug)."""
-    return run_script(SCRIPTS["train"], argv, prepare=robomimic_compat.prepare_train_script)
+def _command(module_name: str, prepare: Callable | None = None) -> Callable[[list[str] | None], int]:
+    """The console program of a robomimic script: our parse (kinds, spellings, checks), then the script's own main
+    block on the parsed arguments, under cli.command's handler."""
+
+    @cli.command(lambda: build_parser(module_name))
+    def main(args: argparse.Namespace) -> int:
+        check_args(module_name, args)
+        module = importlib.import_module(module_name)
+        outcome = prepare(module) if prepare is not None else None
+        code = cli.main_block(module)
+        saved_argv = sys.argv
+        sys.argv = [module.__file__]
+        try:
+            with robomimic_compat.no_prompts(), cli.parse_args_answering(lambda parser: args):
+                exec(code, module.__dict__)
+        finally:
+            sys.argv = saved_argv
+        if outcome is not None and outcome.failed:
+            print(f"veragmil: training failed: {outcome.error!r}", file=sys.__stderr__)
+            return 1
+        return 0
+
+    return main
 
 
-def run_agent_main(argv: list[str] | None = None) -> int:
-    """veragmil-run-agent: robomimic's run_trained_agent.py (--agent, --n_rollouts, --video_path, ...)."""
-    return run_script(SCRIPTS["run-agent"], argv)
-
-
-def get_dataset_info_main(argv: list[str] | None = None) -> int:
-    """veragmil-robomimic-dataset-info: robomimic's get_dataset_info.py (--dataset, --filter_key, --verbose)."""
-    return run_script(SCRIPTS["dataset-info"], argv)
-
-
-def playback_dataset_main(argv: list[str] | None = None) -> int:
-    """veragmil-robomimic-playback: robomimic's playback_dataset.py (--dataset, --video_path, --use-actions, ...)."""
-    return run_script(SCRIPTS["playback"], argv)
-
-
-def dataset_states_to_obs_main(argv: list[str] | None = None) -> int:
-    """veragmil-robomimic-states-to-obs: robomimic's dataset_states_to_obs.py (--dataset, --output_name, ...)."""
-    return run_script(SCRIPTS["states-to-obs"], argv, prepare=robomimic_compat.prepare_states_to_obs_script)
+train_main = _command(SCRIPTS["train"], prepare=robomimic_compat.prepare_train_script)
+train_main.__doc__ = "veragmil-train: robomimic's train.py (--config, --algo, --name, --dataset, --debug)."
+run_agent_main = _command(SCRIPTS["run-agent"])
+run_agent_main.__doc__ = "veragmil-run-agent: robomimic's run_trained_agent.py (--agent, --n_rollouts, ...)."
+get_dataset_info_main = _command(SCRIPTS["dataset-info"])
+get_dataset_info_main.__doc__ = "veragmil-robomimic-dataset-info: robomimic's get_dataset_info.py (--dataset, ...)."
+playback_dataset_main = _command(SCRIPTS["playback"])
+playback_dataset_main.__doc__ = "veragmil-robomimic-playback: robomimic's playback_dataset.py (--dataset, ...)."
+dataset_states_to_obs_main = _command(SCRIPTS["states-to-obs"], prepare=robomimic_compat.prepare_states_to_obs_script)
+dataset_states_to_obs_main.__doc__ = "veragmil-robomimic-states-to-obs: robomimic's dataset_states_to_obs.py."
 
 
 _COMMANDS = {

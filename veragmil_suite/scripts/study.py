@@ -27,48 +27,49 @@ import time
 
 from veragmil_suite.distributed import add_ray_argument, check_ray_argument
 from veragmil_suite.evaluation import SPEC_HELP, parse_agent_argument
-from veragmil_suite.foods import FOODS, TRAINING_FOODS, UNSEEN_FOODS
-from veragmil_suite.observation_sets import OBSERVATION_SETS
-from veragmil_suite.pipeline import ALGO_CONFIGS, PipelineSettings, StageError, run_pipeline
-from veragmil_suite.scripts.cli import positive_int
+from veragmil_suite.foods import TRAINING_FOODS, UNSEEN_FOODS
+from veragmil_suite.pipeline import PipelineSettings, StageError, run_pipeline
+from veragmil_suite.scripts import cli
+from veragmil_suite.scripts.cli import Parser, UsageError, command
+
+# Ctrl-C: what is finished stays, and the same command picks up from there
+INTERRUPTED = "interrupted; run the same command (same --output-dir) again to resume: finished pieces are kept"
 
 
-def add_pipeline_arguments(p: argparse.ArgumentParser, defaults: PipelineSettings) -> None:
+def add_pipeline_arguments(p: Parser, defaults: PipelineSettings) -> None:
     """The options study and quickstart share, with ``defaults`` shown in --help."""
-    from veragmil_suite.expert import PROFILES
-
     p.add_argument(
         "--output-dir",
+        type=cli.output_folder,
         default=argparse.SUPPRESS,
         help=f"where data, runs and tables go; an existing one is resumed (default: {defaults.output_dir}/<date-time>)",
     )
     p.set_defaults(output_base=defaults.output_dir, default_agents=defaults.agents)
-    p.add_argument("--profiles", nargs="+", choices=sorted(PROFILES), default=defaults.profiles)
-    p.add_argument("--algos", nargs="+", choices=sorted(ALGO_CONFIGS), default=defaults.algos)
+    p.add_argument("--profiles", type=cli.ListOf(cli.profile), default=defaults.profiles, help="operator profiles")
+    p.add_argument("--algos", type=cli.ListOf(cli.algo), default=defaults.algos, help="algorithms trained")
     p.add_argument(
         "--obs-sets",
-        nargs="+",
-        choices=sorted(OBSERVATION_SETS),
+        type=cli.ListOf(cli.observation_set),
         default=defaults.obs_sets,
         help="train each model once per low-dim observation set, named in its column (veragmil_suite."
         "observation_sets): object holds grain counts, no-load what a real robot could observe",
     )
-    p.add_argument("--train-foods", nargs="+", choices=sorted(FOODS), default=defaults.train_foods)
-    p.add_argument("--eval-foods", nargs="+", choices=sorted(FOODS), default=defaults.eval_foods)
+    p.add_argument("--train-foods", type=cli.ListOf(cli.food), default=defaults.train_foods, help="foods recorded")
+    p.add_argument("--eval-foods", type=cli.ListOf(cli.food), default=defaults.eval_foods, help="foods evaluated")
     p.add_argument(
         "--demos-per-food",
-        type=positive_int,
-        nargs="+",
+        type=cli.ListOf(cli.count),
         default=defaults.demos_per_food,
         help="the paper: 30; several values train one model each (a learning curve over data)",
     )
-    p.add_argument("--epochs", type=positive_int, default=defaults.epochs, help="the configs' own: 2000")
+    p.add_argument("--epochs", type=cli.count, default=defaults.epochs, help="the configs' own: 2000")
     p.add_argument(
-        "--steps-per-epoch", type=positive_int, default=defaults.steps_per_epoch, help="gradient steps per epoch"
+        "--steps-per-epoch", type=cli.count, default=defaults.steps_per_epoch, help="gradient steps per epoch"
     )
     p.add_argument(
         "--algo-epochs",
         action="append",
+        type=cli.KeyValue(cli.algo, cli.count, "ALGO=EPOCHS"),
         metavar="ALGO=EPOCHS",
         default=None,
         help="this algorithm's own number of epochs instead of --epochs (repeat for more), e.g. bc_rnn=40: "
@@ -76,34 +77,34 @@ def add_pipeline_arguments(p: argparse.ArgumentParser, defaults: PipelineSetting
     )
     p.add_argument(
         "--eval-steps",
-        type=positive_int,
-        nargs="+",
+        type=cli.ListOf(cli.count),
         default=None,
         help="evaluate the checkpoints at these gradient steps (a learning curve; default: the last only)",
     )
     p.add_argument(
-        "--episodes", type=positive_int, default=defaults.episodes, help="evaluation episodes per food and model"
+        "--episodes", type=cli.count, default=defaults.episodes, help="evaluation episodes per food and model"
     )
     p.add_argument(
         "--processes",
-        type=positive_int,
+        type=cli.count,
         default=defaults.processes,
         help="parallel recording and evaluation processes (with --ray, the least number of pieces in flight)",
     )
-    p.add_argument("--horizon", type=positive_int, default=defaults.horizon, help="longest episode, control steps")
-    p.add_argument("--n-grains", type=positive_int, default=None, help="grains in the bowl (default: each food's own)")
-    p.add_argument("--seed", type=int, default=defaults.seed)
+    p.add_argument("--horizon", type=cli.count, default=defaults.horizon, help="longest episode, control steps")
+    p.add_argument("--n-grains", type=cli.count, default=None, help="grains in the bowl (default: each food's own)")
+    p.add_argument("--seed", type=cli.seed, default=defaults.seed, help="first recording seed")
     p.add_argument(
         "--train-seeds",
-        type=int,
-        nargs="+",
+        type=cli.ListOf(cli.seed),
         default=None,
         metavar="SEED",
         help="train each model once per seed (torch's), on the same data and scored on the same episodes; "
         "eval/seeds.md gives each recipe's mean and range over them (default: --seed + 1 alone)",
     )
     p.add_argument(
-        "--robot",
+        "--robots",
+        aliases=["--robot"],
+        type=cli.robot,
         default=defaults.robot,
         help="the robot that records, and that the models and operators scoop with (G1FixedLowerBody: the G1, "
         "with the humanoid extra)",
@@ -123,6 +124,7 @@ def add_pipeline_arguments(p: argparse.ArgumentParser, defaults: PipelineSetting
     p.add_argument(
         "--agent",
         action="append",
+        type=cli.agent,
         metavar="[NAME=]SPEC",
         default=argparse.SUPPRESS,
         help=f"also evaluate this agent beside the run's own (repeat for more): SPEC is {SPEC_HELP} (default: "
@@ -148,7 +150,7 @@ def settings_from_args(args: argparse.Namespace) -> PipelineSettings:
         processes=args.processes,
         horizon=args.horizon,
         n_grains=args.n_grains,
-        robot=args.robot,
+        robot=args.robots,
         seed=args.seed,
         score_demonstrators=args.score_demonstrators,
         train_seeds=args.train_seeds,
@@ -157,18 +159,9 @@ def settings_from_args(args: argparse.Namespace) -> PipelineSettings:
     )
 
 
-def algo_epochs(texts: list[str] | None) -> dict[str, int]:
-    """``--algo-epochs`` values as algorithm -> epochs; ValueError naming the accepted form and algorithms."""
-    epochs: dict[str, int] = {}
-    for text in texts or []:
-        algo, sep, value = text.partition("=")
-        if not sep or algo not in ALGO_CONFIGS:
-            raise ValueError(f"--algo-epochs takes ALGO=EPOCHS with ALGO one of {sorted(ALGO_CONFIGS)}, got {text!r}")
-        try:
-            epochs[algo] = positive_int(value)
-        except argparse.ArgumentTypeError as error:
-            raise ValueError(f"--algo-epochs {text!r}: EPOCHS {error}") from None
-    return epochs
+def algo_epochs(pairs: list[tuple[str, int]] | None) -> dict[str, int]:
+    """``--algo-epochs`` values (cli.KeyValue pairs) as algorithm -> epochs, the last given for an algorithm."""
+    return dict(pairs or [])
 
 
 def agent_columns(texts: list[str] | None, defaults: dict[str, str]) -> dict[str, str]:
@@ -184,18 +177,17 @@ def agent_columns(texts: list[str] | None, defaults: dict[str, str]) -> dict[str
     return agents
 
 
-def run(parser: argparse.ArgumentParser, argv: list[str] | None) -> int:
-    """Parses, runs the pipeline and prints the tables; bad values exit 2 with the accepted ones named."""
-    args = parser.parse_args(argv)
-    check_ray_argument(parser, args)
+def run(args: argparse.Namespace, prog: str) -> int:
+    """Runs the pipeline and prints the tables."""
+    check_ray_argument(args)
     try:
         settings = settings_from_args(args)
     except ValueError as error:
-        parser.error(str(error))
+        raise UsageError(str(error)) from None
     try:
         result = run_pipeline(settings, verbose=args.verbose)
     except StageError as error:
-        print(f"{parser.prog}: {error}", file=sys.stderr)
+        print(f"{prog}: {error}", file=sys.stderr)
         return 1
     print(result.markdown())
     print(result.stages_markdown())
@@ -203,12 +195,8 @@ def run(parser: argparse.ArgumentParser, argv: list[str] | None) -> int:
     return 0
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
-        prog="veragmil-study",
-        description=__doc__.split("\n\n")[1].strip(),
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
-    )
+def build_parser() -> Parser:
+    parser = Parser("veragmil-study", description=__doc__.split("\n\n")[1].strip())
     defaults = PipelineSettings(
         output_dir="runs/study",
         profiles=["expert", "spacemouse"],
@@ -218,7 +206,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     add_pipeline_arguments(parser, defaults)
     add_ray_argument(parser, "the recording attempts, training runs and evaluation episodes")
-    return run(parser, argv)
+    return parser
+
+
+@command(build_parser, interrupted=INTERRUPTED)
+def main(args: argparse.Namespace) -> int:
+    return run(args, "veragmil-study")
 
 
 if __name__ == "__main__":
