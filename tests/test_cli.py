@@ -416,7 +416,7 @@ def test_commands_committed_in_results_still_parse():
 def test_ctrl_c_in_a_study_is_one_line_naming_the_resume_and_exit_130(tmp_path, monkeypatch, capsys):
     from veragmil_suite.scripts import study
 
-    def interrupted(settings):
+    def interrupted(settings, **_):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(study, "run_pipeline", interrupted)

@@ -30,7 +30,7 @@ pytestmark = [
 @pytest.fixture(scope="module")
 def exported(tmp_path_factory):
     root = tmp_path_factory.mktemp("lerobot") / "scoop"
-    assert main([str(SAMPLE), "--output", str(root), "--quiet"]) == 0
+    assert main([str(SAMPLE), "--output-dir", str(root), "--quiet"]) == 0
     from veragmil_suite import robomimic_compat
 
     robomimic_compat.install()  # torchvision, which lerobot-dataset imports, beside the CPU torch wheel
@@ -96,25 +96,24 @@ def test_the_episodes_are_the_files_foods(exported):
 
 def test_an_unknown_filter_key_or_file_is_one_line_naming_the_accepted_and_exit_2(tmp_path, capsys):
     out = tmp_path / "out"
-    assert main([str(SAMPLE), "--output", str(out), "--filter-key", "peas"]) == 2
+    assert main([str(SAMPLE), "--output-dir", str(out), "--filter-key", "peas"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no filter key 'peas'" in err[0] and "rice" in err[0]
-    assert main([str(tmp_path / "none.hdf5"), "--output", str(out)]) == 2
+    assert main([str(tmp_path / "none.hdf5"), "--output-dir", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "no such file" in err[0]
+    assert "no such file" in err[-1]  # argparse's usage, then its one error line
     assert not out.exists()
 
 
 def test_an_unknown_codec_is_refused_by_argparse_naming_the_codecs(tmp_path, capsys):
-    with pytest.raises(SystemExit) as stop:
-        main([str(SAMPLE), "--output", str(tmp_path / "out"), "--vcodec", "mpeg2"])
-    assert stop.value.code == 2
-    assert "invalid choice: 'mpeg2' (choose from 'libsvtav1', 'h264', 'hevc')" in capsys.readouterr().err
+    assert main([str(SAMPLE), "--output-dir", str(tmp_path / "out"), "--vcodec", "mpeg2"]) == 2
+    err = capsys.readouterr().err
+    assert "mpeg2" in err and "libsvtav1" in err and "h264" in err and "hevc" in err
 
 
 def test_an_existing_output_is_kept_without_force(tmp_path, capsys):
     out = tmp_path / "out"
     out.mkdir()
     (out / "mine.txt").write_text("kept")
-    assert main([str(SAMPLE), "--output", str(out)]) == 2
+    assert main([str(SAMPLE), "--output-dir", str(out)]) == 2
     assert "exists (use --force" in capsys.readouterr().err and (out / "mine.txt").read_text() == "kept"

@@ -43,6 +43,7 @@ class UsageError(Exception):
 EXPECTED_ERRORS = (
     "veragmil_suite.recording.DatasetError",
     "veragmil_suite.distributed.RayMissing",
+    "veragmil_suite.lerobot_export.ExtraNotInstalled",
 )
 # OSErrors about the user's files, folders, disk or addresses, not about our code
 USER_ERRNOS = {
@@ -735,16 +736,17 @@ def _check_env_value(name: str, value: Any, kwargs: dict, default: Any) -> None:
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise count.refuse(value)
         from veragmil_suite.environments.scoop import MAX_GRAINS_PER_DEFAULT
-        from veragmil_suite.foods import FOODS
+        from veragmil_suite.foods import DEFAULT_PHYSICS, FOODS, PHYSICS
 
         # the food's own limit, or without a food the largest (each food's is checked where it is known)
         foods = [FOODS[kwargs["food"]]] if kwargs.get("food") in FOODS else list(FOODS.values())
-        spec = max(foods, key=lambda f: f.default_grains)
-        if value > MAX_GRAINS_PER_DEFAULT * spec.default_grains:
+        physics = kwargs.get("physics") if kwargs.get("physics") in PHYSICS else DEFAULT_PHYSICS
+        spec = max(foods, key=lambda f: f.grain(physics).default_grains)
+        limit = MAX_GRAINS_PER_DEFAULT * spec.grain(physics).default_grains
+        if value > limit:
             what = spec.name if len(foods) == 1 else f"any food ({spec.name})"
             raise argparse.ArgumentTypeError(
-                f"at most {MAX_GRAINS_PER_DEFAULT * spec.default_grains} grains of {what}, "
-                f"{MAX_GRAINS_PER_DEFAULT}x its default, got {value}"
+                f"at most {limit} grains of {what}, {MAX_GRAINS_PER_DEFAULT}x its default, got {value}"
             )
         return
     if name in ("control_freq", "physics_timestep_s"):
