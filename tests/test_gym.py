@@ -64,16 +64,23 @@ def test_the_same_seed_gives_the_same_bowl_pile_and_first_observation():
 
 
 def test_held_success_terminates_and_is_success_is_the_suites_rule():
-    """The scripted expert, driven through the Gymnasium env: terminated once success has held SUCCESS_HOLD_S."""
+    """The scripted expert, driven through the Gymnasium env: terminated once success has held SUCCESS_HOLD_S.
+
+    Seeds are tried in turn until one episode succeeds: whether one seed's scoop does is a property of the CPU (a
+    pile is chaotic), the termination rule checked on it is not.
+    """
     env = make(horizon=400)
-    obs, _ = env.reset(seed=0)
     inner = env.unwrapped
-    expert = ScriptedScooper(inner.robosuite_env, "expert", seed=0)
-    successes, terminated, truncated = [], False, False
-    while not (terminated or truncated or expert.done):
-        obs, reward, terminated, truncated, info = env.step(expert.act(inner.robosuite_obs))
-        successes.append(info["success"])
-        assert info["is_success"] == terminated  # success held is the only way this episode terminates
+    for seed in range(4):
+        env.reset(seed=seed)
+        expert = ScriptedScooper(inner.robosuite_env, "expert", seed=seed)
+        successes, terminated, truncated = [], False, False
+        while not (terminated or truncated or expert.done):
+            obs, reward, terminated, truncated, info = env.step(expert.act(inner.robosuite_obs))
+            successes.append(info["success"])
+            assert info["is_success"] == terminated  # success held is the only way this episode terminates
+        if terminated:
+            break
     assert terminated and not truncated and info["is_success"], info
     assert info["physics_error"] == "" and info["grains_in_spoon"] >= 1
     hold = round(SUCCESS_HOLD_S * inner.robosuite_env.control_freq)

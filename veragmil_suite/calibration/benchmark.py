@@ -102,11 +102,14 @@ def expert_scoop_g(food: str, physics: str, seeds: range) -> dict:
     }
 
 
-def measure_food(food: FoodSpec, physics: str, quick: bool = False, expert_seeds: range | None = None) -> dict:
-    """Every calibration quantity of one food under ``physics``, with its checks."""
+def measure_food(
+    food: FoodSpec, physics: str, quick: bool = False, expert_seeds: range | None = None, scale: float | None = None
+) -> dict:
+    """Every calibration quantity of one food under ``physics``, with its checks (``scale``: the tube's size)."""
     ref = food.reference
     start = time.perf_counter()
-    scale = QUICK_TUBE_SCALE if quick else 1.0
+    if scale is None:
+        scale = QUICK_TUBE_SCALE if quick else 1.0
     cylinder = lifting_cylinder(food, physics, scale=scale, max_settle_s=4.0 if quick else 8.0)
     spoon_g, spoon_grains = level_spoonful_g(food, physics)
     spoon_cm3 = dish_volume_m3(SPOON_SHAPE) * 1e6
@@ -133,6 +136,7 @@ def measure_food(food: FoodSpec, physics: str, quick: bool = False, expert_seeds
         "reference_dims_mm": ref.grain_dims_mm,
         "spoonful_grains": spoon_grains,
         "spoon_volume_cm3": spoon_cm3,
+        "tube_scale": scale,
         "checks": {k: c.as_dict() for k, c in checks.items()},
         "missing_references": [k for k, c in checks.items() if c.ref is None],
     }
@@ -176,6 +180,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--foods", nargs="+", choices=sorted(FOODS), default=sorted(FOODS), metavar="FOOD")
     parser.add_argument("--physics", nargs="+", choices=PHYSICS, default=["calibrated"])
     parser.add_argument("--quick", action="store_true", help="a smaller tube fill, no expert episodes (the tests')")
+    parser.add_argument("--tube-scale", type=float, help="the lifting cylinder's size against the standard tube")
     parser.add_argument("--expert-episodes", type=int, default=3, help="expert episodes per food (0: none)")
     parser.add_argument("--json", help="write every measurement here")
     return parser
@@ -184,13 +189,16 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.expert_episodes < 0:
-        print("--expert-episodes must be a count of at least 0", file=sys.stderr)
+        print(f"--expert-episodes must be a count of at least 0, got {args.expert_episodes}", file=sys.stderr)
+        return 2
+    if args.tube_scale is not None and not 0.2 <= args.tube_scale <= 2.0:
+        print(f"--tube-scale must lie in 0.2-2.0, got {args.tube_scale}", file=sys.stderr)
         return 2
     seeds = None if args.quick or args.expert_episodes == 0 else range(args.expert_episodes)
     rows = []
     for physics in args.physics:
         for name in args.foods:
-            rows.append(measure_food(FOODS[name], physics, quick=args.quick, expert_seeds=seeds))
+            rows.append(measure_food(FOODS[name], physics, args.quick, seeds, args.tube_scale))
             print(f"  measured {name} ({physics}) in {rows[-1]['wall_s']:.0f} s", file=sys.stderr, flush=True)
     print(format_table(rows))
     missing = {r["food"]: r["missing_references"] for r in rows if r["missing_references"]}
