@@ -34,9 +34,9 @@ PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 # episodes.csv as published results and scripts read it: EpisodeRecord's fields, in order
 EPISODES_CSV_HEADER = (
     "agent,food,episode,seed,success,grains_spilled,spilled_volume_cm3,completion_time_s,steps,end_reason,"
-    "physics_error,grains_in_spoon,spill_fraction,stage,peak_grains_in_spoon,wall_s"
+    "physics_error,grains_in_spoon,spill_fraction,stage,peak_grains_in_spoon,wall_s,spilled_mass_g,spoon_mass_g"
 )
-EPISODES_CSV_ROW = "A,rice,0,0,True,2,0.2,10.0,200,success,,3,0.0,held,3,1.0"
+EPISODES_CSV_ROW = "A,rice,0,0,True,2,0.2,10.0,200,success,,3,0.0,held,3,1.0,nan,nan"
 # one line of episodes.jsonl, the journal a resumed run reads back
 JOURNAL_LINE = (
     '{"key": "[\\"expert\\", \\"expert\\", \\"pasta\\", 0, 80, {\\"n_grains\\": 12, \\"pile_variants\\": 1}]", '
@@ -45,6 +45,8 @@ JOURNAL_LINE = (
     '"grains_in_spoon": 12, "spill_fraction": 0.0, "stage": "loaded spoon", "peak_grains_in_spoon": 12, '
     '"wall_s": 1.3754890439995506}}'
 )
+# the same episode as written since grams are recorded (unknown in a journal of before: null)
+JOURNAL_LINE_NOW = JOURNAL_LINE[:-2] + ', "spilled_mass_g": null, "spoon_mass_g": null}}'
 
 
 def _run(*args, timeout=300):
@@ -115,13 +117,13 @@ def test_summary_and_tables_match_a_hand_computed_case(tmp_path):
         "| *overall average* | 56 (30-90) | 100 (21-100) |",  # rates averaged per food; 4 successes in 6
     ):
         assert line in lines, line
-    # Table III: spilled pieces mean +- std, time over successes ("-" when none)
+    # Table III: spilled pieces mean +- std, grams spilled and carried ("-": not recorded), time over successes
     for line in (
-        "| rice | 4.0 ± 1.6 | 12.0 | 3.0 ± 0.0 | 9.0 |",
-        "| pasta | 1.0 ± 0.0 | - | - | - |",
-        "| *seen (training) average* | 2.5 | 12.0 | 3.0 | 9.0 |",
-        "| peas | 1.0 ± 1.0 | 10.0 | - | - |",
-        "| *overall average* | 2.0 | 11.0 | 3.0 | 9.0 |",  # spilled (4 + 1 + 1) / 3; time (12 + 10) / 2,
+        "| rice | 4.0 ± 1.6 | - | - | 12.0 | 3.0 ± 0.0 | - | - | 9.0 |",
+        "| pasta | 1.0 ± 0.0 | - | - | - | - | - | - | - |",
+        "| *seen (training) average* | 2.5 | - | - | 12.0 | 3.0 | - | - | 9.0 |",
+        "| peas | 1.0 ± 1.0 | - | - | 10.0 | - | - | - | - |",
+        "| *overall average* | 2.0 | - | - | 11.0 | 3.0 | - | - | 9.0 |",  # spilled (4 + 1 + 1) / 3; time (12 + 10) / 2
     ):
         assert line in lines, line
     rice_line, peas_line = "| rice | 67 (21-94) | 100 (21-100) |", "| peas | 100 (34-100) | - |"
@@ -176,7 +178,7 @@ def test_a_journaled_episode_reads_back_and_is_journaled_the_same_way(tmp_path):
     )
     again = tmp_path / "again.jsonl"
     Journal(again, resume=False).add(task, replace(record, episode=0))
-    assert again.read_text() == JOURNAL_LINE + "\n"
+    assert again.read_text() == JOURNAL_LINE_NOW + "\n"
     assert Journal(path, resume=False).records == {} and not path.exists()  # a fresh run starts a new journal
 
 

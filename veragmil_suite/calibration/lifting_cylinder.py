@@ -71,7 +71,7 @@ def tube_size(food: FoodSpec, physics: str, scale: float = 1.0) -> tuple[float, 
     return radius, radius * 3.5 / 2.1, max(20, int(grains(radius)))
 
 
-def _model_xml(pile: GrainPile, radius: float, option: dict, timestep: float) -> str:
+def _model_xml(pile: GrainPile, radius: float, height: float, option: dict, timestep: float) -> str:
     root = ET.Element("mujoco", model="lifting_cylinder")
     opt = ET.SubElement(root, "option", timestep=repr(timestep), **{k: str(v) for k, v in option.items()})
     ET.SubElement(opt, "flag", eulerdamp="disable")  # as in ScoopTask
@@ -81,7 +81,6 @@ def _model_xml(pile: GrainPile, radius: float, option: dict, timestep: float) ->
     for key, value in contact_groups.SUPPORT.items():
         floor.set(key, str(value))
     tube = ET.SubElement(world, "body", name="tube", mocap="true", pos="0 0 0")
-    height = 0.3
     t = STAVE_HALF_THICKNESS_M
     chord = 2 * (radius + t) * math.tan(math.pi / TUBE_STAVES) * 1.1
     for k in range(TUBE_STAVES):
@@ -128,8 +127,6 @@ def lifting_cylinder(
     radius, _, n = tube_size(food, physics, scale)
     pile = GrainPile(food, n, np.random.default_rng(seed), physics=physics)
     option = {**PHYSICS_SOLVER_OPTIONS[physics], **(solver_options or {})}
-    model = mujoco.MjModel.from_xml_string(_model_xml(pile, radius, option, PHYSICS_TIMESTEP_S))
-    data = mujoco.MjData(model)
     shape = DishShape(
         rim_semi_axes=(radius, radius),
         floor_semi_axes=(radius, radius),
@@ -137,8 +134,13 @@ def lifting_cylinder(
         wall_half_thickness=STAVE_HALF_THICKNESS_M,
         floor_half_thickness=0.01,
     )
+    lattice = pile.lattice_qpos(shape, rim_center=np.array([0.0, 0.0, 10.0]))
+    # the tube holds the whole lattice (long pasta stacks a metre high before it falls)
+    tube_height = float(lattice[:, 2].max() + pile.radii.max()) + 0.02
+    model = mujoco.MjModel.from_xml_string(_model_xml(pile, radius, tube_height, option, PHYSICS_TIMESTEP_S))
+    data = mujoco.MjData(model)
     adr = np.array([model.joint(j).qposadr[0] for j in pile.joint_names])
-    data.qpos[adr[:, None] + np.arange(7)] = pile.lattice_qpos(shape, rim_center=np.array([0.0, 0.0, 10.0]))
+    data.qpos[adr[:, None] + np.arange(7)] = lattice
     ids = np.array([model.body(b).id for b in pile.body_names])
     mass = model.body_mass[ids]
     half_thickness = pile.thickness_radii
