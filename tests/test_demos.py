@@ -74,9 +74,11 @@ def test_config_loads_the_sample_through_robomimic(name):
     assert shape_meta["ac_dim"] == 6
     trainset, _ = TrainUtils.load_data_for_training(config, obs_keys=shape_meta["all_obs_keys"])
     item = trainset[0]
-    assert item["actions"].shape == (config.train.seq_length, 6)
+    # robomimic 0.3.0 pads a frame-stacked sequence with frame_stack - 1 earlier steps, actions as observations
+    length = config.train.seq_length + config.train.frame_stack - 1
+    assert item["actions"].shape == (length, 6)
     for key in config.all_obs_keys:
-        assert item["obs"][key].shape[0] == config.train.seq_length, key
+        assert item["obs"][key].shape[0] == length, key
     for key in config.observation.modalities.obs.rgb:
         assert item["obs"][key].shape[1:] == (IMAGE_SIZE, IMAGE_SIZE, 3)  # raw; robomimic processes per batch
 
