@@ -217,6 +217,10 @@ def _local_piece(function: Callable[[Any, Any], Any], piece: Any) -> Any:
     return function(_LOCAL_CONTEXT["value"], piece)
 
 
+# thread counts of the math libraries, set to 1 for local worker processes (Ray sets OMP_NUM_THREADS=1 in its own)
+WORKER_THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
 class _ProcessBackend(_Backend):
     """A pool of fresh worker processes (forkserver where there is one), each given the context once."""
 
@@ -227,6 +231,10 @@ class _ProcessBackend(_Backend):
         methods = multiprocessing.get_all_start_methods()
         mp_context = multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
         self.function = function
+        # one BLAS thread, as Ray gives its workers: the controller's small solves round differently with more, and
+        # a pile turns that round-off into another episode (a study's local and Ray runs disagreed on this CPU)
+        for name in WORKER_THREAD_VARIABLES:
+            os.environ.setdefault(name, "1")
         self.pool = ProcessPoolExecutor(
             max_workers=processes, mp_context=mp_context, initializer=_local_init, initargs=(setup, context)
         )
