@@ -130,3 +130,15 @@ def test_benchmark_quick_writes_its_table_and_json(tmp_path, capsys):
     rows = json.loads(out.read_text())["rows"]
     assert rows[0]["food"] == "peas" and rows[0]["physics"] == "calibrated"
     assert set(rows[0]["checks"]) == {"angle_of_repose_deg", "bulk_density_g_cm3", "grain_mass_mg", "spoonful_g"}
+
+
+def test_a_settled_pile_is_watched_for_creep_escapes_and_errors(tmp_path):
+    from veragmil_suite.calibration import stability
+
+    row = stability.settle_and_watch("pasta", "table1", seed=0, watch_s=0.5)
+    assert row["error"] == "" and row["escaped"] == 0 and row["max_creep_m"] < 0.01
+    out = tmp_path / "stability.jsonl"
+    assert stability.main(["--foods", "pasta", "--physics", "table1", "--settles", "1", "--jsonl", str(out)]) == 0
+    assert stability.main(["--foods", "pasta", "--physics", "table1", "--settles", "1", "--jsonl", str(out)]) == 0
+    assert len(out.read_text().splitlines()) == 1  # the rerun resumed: nothing settled twice
+    assert stability.main(["--settles", "0", "--jsonl", str(out)]) == 2

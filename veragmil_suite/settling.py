@@ -128,14 +128,15 @@ def settle(bowl: Bowl, pile: GrainPile, option: dict, timestep: float, use_disk:
     if entry is not None:
         _MEMORY[key] = SettledPile(*entry)
         return _MEMORY[key]
-    result = _simulate(xml, bowl, pile)
+    result = simulate_settling(xml, bowl, pile)
     _MEMORY[key] = result
     if use_disk:
         pile_cache.save(path, result.bowl_qpos, result.grain_qpos, result.max_speed_m_s, result.settle_time_s)
     return result
 
 
-def _simulate(xml: str, bowl: Bowl, pile: GrainPile) -> SettledPile:
+def simulate_settling(xml: str, bowl: Bowl, pile: GrainPile) -> SettledPile:
+    """Runs a pile's settling model (pile_model_xml) until the pile is still; no cache read or written."""
     model = mujoco.MjModel.from_xml_string(xml)
     data = mujoco.MjData(model)
     bowl_joint = model.joint(bowl.joints[0]).qposadr[0]

@@ -25,7 +25,7 @@ from veragmil_suite.foods import FOODS, PHYSICS
 from veragmil_suite.models.bowl import Bowl
 from veragmil_suite.models.grains import GrainPile
 from veragmil_suite.models.scoop_task import PHYSICS_SOLVER_OPTIONS, PHYSICS_TIMESTEP_S
-from veragmil_suite.settling import _simulate, pile_model_xml
+from veragmil_suite.settling import pile_model_xml, simulate_settling
 
 CREEP_LIMIT_M = 5e-4  # a grain of a pile at rest moves less than this over the watch
 
@@ -40,7 +40,7 @@ def settle_and_watch(food: str, physics: str, seed: int, watch_s: float = 2.0) -
     row = {"food": food, "physics": physics, "seed": seed}
     start = time.perf_counter()
     try:
-        settled = _simulate(xml, bowl, pile)
+        settled = simulate_settling(xml, bowl, pile)
     except RuntimeError as e:
         return {**row, "error": str(e), "wall_s": time.perf_counter() - start}
     model = mujoco.MjModel.from_xml_string(xml)
