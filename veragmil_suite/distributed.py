@@ -80,6 +80,18 @@ def check_ray_argument(args) -> None:
         require_ray()
 
 
+def _blas_threads_env() -> dict:
+    """Ray's runtime_env giving its workers the BLAS thread count of this process's children.
+
+    Ray starts workers with OMP_NUM_THREADS=1; OpenBLAS then rounds the controller's small solves differently from
+    a process with a thread per core, and a pile turns that round-off into another episode (a study's Ray and local
+    runs disagreed on one CPU). OpenBLAS reads OPENBLAS_NUM_THREADS before OMP_NUM_THREADS, and uses every core
+    the process may run on when neither is set.
+    """
+    threads = os.environ.get("OPENBLAS_NUM_THREADS") or os.environ.get("OMP_NUM_THREADS")
+    return {"env_vars": {"OPENBLAS_NUM_THREADS": threads or str(len(os.sched_getaffinity(0)))}}
+
+
 @contextlib.contextmanager
 def ray_session(address: str | None, num_cpus: int | None = None) -> Iterator[str | None]:
     """
@@ -106,7 +118,7 @@ def ray_session(address: str | None, num_cpus: int | None = None) -> Iterator[st
 
     connected_here = not ray.is_initialized()
     if connected_here:
-        kwargs: dict[str, Any] = dict(logging_level="WARNING", configure_logging=True)
+        kwargs: dict[str, Any] = dict(logging_level="WARNING", configure_logging=True, runtime_env=_blas_threads_env())
         if start_here:
             ray.init(address="local", num_cpus=num_cpus, include_dashboard=False, **kwargs)  # a new instance
         else:
@@ -217,10 +229,6 @@ def _local_piece(function: Callable[[Any, Any], Any], piece: Any) -> Any:
     return function(_LOCAL_CONTEXT["value"], piece)
 
 
-# thread counts of the math libraries, set to 1 for local worker processes (Ray sets OMP_NUM_THREADS=1 in its own)
-WORKER_THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
-
-
 class _ProcessBackend(_Backend):
     """A pool of fresh worker processes (forkserver where there is one), each given the context once."""
 
@@ -231,10 +239,6 @@ class _ProcessBackend(_Backend):
         methods = multiprocessing.get_all_start_methods()
         mp_context = multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
         self.function = function
-        # one BLAS thread, as Ray gives its workers: the controller's small solves round differently with more, and
-        # a pile turns that round-off into another episode (a study's local and Ray runs disagreed on this CPU)
-        for name in WORKER_THREAD_VARIABLES:
-            os.environ.setdefault(name, "1")
         self.pool = ProcessPoolExecutor(
             max_workers=processes, mp_context=mp_context, initializer=_local_init, initargs=(setup, context)
         )
