@@ -107,6 +107,7 @@ CASES = [
     ("veragmil-evaluate", [*EVAL, "--env-kwargs", '{{"horizon": -5}}'], "horizon is set by --horizon"),
     ("veragmil-evaluate", [*EVAL, "--env-kwargs", '{{"robots": "Nonexistent"}}'], "robots is set by --robots"),
     ("veragmil-evaluate", [*EVAL, "--env-kwargs", '{{"food": "sushi"}}'], "food is set by --foods"),
+    ("veragmil-evaluate", [*EVAL, "--env-kwargs", '{{"physics": "lunar"}}'], "unknown physics 'lunar'; accepted"),
     ("veragmil-evaluate", [*EVAL, "--env-kwargs", '{{"control_freq": 1e-9}}'],
      "control_freq: must be a control rate in Hz of at least 1"),
     ("veragmil-evaluate", [*EVAL, "--foods", "pasta", "--env-kwargs", '{{"n_grains": 500}}'],

@@ -121,7 +121,10 @@ class GrainModel:
 
     @property
     def friction_triplet(self) -> tuple[float, float, float]:
-        """MuJoCo geom friction (sliding, torsional, rolling)."""
+        """MuJoCo geom friction (sliding, torsional, rolling); with condim 3, which ignores the last two, MuJoCo's
+        usual small ones (as every Table I grain was written)."""
+        if self.condim == 3:
+            return (self.friction, 0.005, 0.0001)
         return (self.friction, self.torsional_friction_m, self.rolling_friction_m)
 
     @property

@@ -19,6 +19,7 @@ import sys
 import time
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
 
 from veragmil_suite.calibration.lifting_cylinder import lifting_cylinder
@@ -69,15 +70,9 @@ def grain_dims_mm(food: FoodSpec, physics: str) -> tuple[float, float, float]:
         elif g["type"] == "capsule":
             half = np.array([size[0], size[0], size[0] + size[1]])
         else:  # ellipsoid or box: half-axes, rotated by the geom's quaternion
-            w, x, y, z = g["quat"]
-            rot = np.array(
-                [
-                    [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                    [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                    [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-                ]
-            )
-            half = np.abs(rot) @ size
+            rot = np.zeros(9)
+            mujoco.mju_quat2Mat(rot, np.asarray(g["quat"], dtype=float))
+            half = np.abs(rot.reshape(3, 3)) @ size
         lo = np.minimum(lo, pos - half)
         hi = np.maximum(hi, pos + half)
     dims = np.sort((hi - lo) * 1000.0)[::-1]

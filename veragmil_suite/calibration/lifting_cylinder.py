@@ -17,14 +17,12 @@ from dataclasses import asdict, dataclass
 import mujoco
 import numpy as np
 
+from veragmil_suite.calibration.scene import calibration_scene, run_until_rest
 from veragmil_suite.foods import FoodSpec
 from veragmil_suite.models import contact_groups
 from veragmil_suite.models.dish import DishShape
 from veragmil_suite.models.grains import GrainPile
-from veragmil_suite.models.scoop_task import PHYSICS_SOLVER_OPTIONS, PHYSICS_TIMESTEP_S
 
-REST_SPEED_M_S = 0.002  # every grain slower than this: at rest (the test's stopping rule)
-EJECTED_SPEED_M_S = 3.0  # faster than any fall in the test (2 m/s from 20 cm): a grain the solver threw
 LIFT_SPEED_M_S = 0.02
 TUBE_STAVES = 24
 STAVE_HALF_THICKNESS_M = 0.005
@@ -71,15 +69,8 @@ def tube_size(food: FoodSpec, physics: str, scale: float = 1.0) -> tuple[float, 
     return radius, radius * 3.5 / 2.1, max(20, int(grains(radius)))
 
 
-def _model_xml(pile: GrainPile, radius: float, height: float, option: dict, timestep: float) -> str:
-    root = ET.Element("mujoco", model="lifting_cylinder")
-    opt = ET.SubElement(root, "option", timestep=repr(timestep), **{k: str(v) for k, v in option.items()})
-    ET.SubElement(opt, "flag", eulerdamp="disable")  # as in ScoopTask
-    world = ET.SubElement(root, "worldbody")
-    floor = ET.SubElement(world, "geom", name="floor", type="box", pos="0 0 -0.01", size="0.5 0.5 0.01")
-    floor.set("friction", "0.01 0 0")  # the grains' own friction acts (MuJoCo takes the larger)
-    for key, value in contact_groups.SUPPORT.items():
-        floor.set(key, str(value))
+def _model_xml(pile: GrainPile, radius: float, height: float, physics: str, solver_options: dict | None) -> str:
+    root, world = calibration_scene("lifting_cylinder", physics, solver_options)
     tube = ET.SubElement(world, "body", name="tube", mocap="true", pos="0 0 0")
     t = STAVE_HALF_THICKNESS_M
     chord = 2 * (radius + t) * math.tan(math.pi / TUBE_STAVES) * 1.1
@@ -94,21 +85,6 @@ def _model_xml(pile: GrainPile, radius: float, height: float, option: dict, time
     for body in pile.bodies():
         world.append(body)
     return ET.tostring(root, encoding="unicode")
-
-
-def _run_until_rest(model, data, ids, max_s: float, min_s: float = 0.3) -> tuple[bool, int]:
-    """Steps until every grain is slower than REST_SPEED_M_S; returns (came to rest, most grains seen ejected)."""
-    start = data.time
-    fast = 0
-    while data.time - start < max_s:
-        mujoco.mj_step(model, data, nstep=24)
-        speed = np.linalg.norm(data.cvel[ids, 3:], axis=1)
-        if not np.isfinite(speed).all():
-            raise RuntimeError("the grains blew up (non-finite velocities)")
-        fast = max(fast, int((speed > EJECTED_SPEED_M_S).sum()))
-        if data.time - start >= min_s and speed.max() < REST_SPEED_M_S:
-            return True, fast
-    return False, fast
 
 
 def lifting_cylinder(
@@ -126,7 +102,6 @@ def lifting_cylinder(
     """
     radius, _, n = tube_size(food, physics, scale)
     pile = GrainPile(food, n, np.random.default_rng(seed), physics=physics)
-    option = {**PHYSICS_SOLVER_OPTIONS[physics], **(solver_options or {})}
     shape = DishShape(
         rim_semi_axes=(radius, radius),
         floor_semi_axes=(radius, radius),
@@ -137,7 +112,7 @@ def lifting_cylinder(
     lattice = pile.lattice_qpos(shape, rim_center=np.array([0.0, 0.0, 10.0]))
     # the tube holds the whole lattice (long pasta stacks a metre high before it falls)
     tube_height = float(lattice[:, 2].max() + pile.radii.max()) + 0.02
-    model = mujoco.MjModel.from_xml_string(_model_xml(pile, radius, tube_height, option, PHYSICS_TIMESTEP_S))
+    model = mujoco.MjModel.from_xml_string(_model_xml(pile, radius, tube_height, physics, solver_options))
     data = mujoco.MjData(model)
     adr = np.array([model.joint(j).qposadr[0] for j in pile.joint_names])
     data.qpos[adr[:, None] + np.arange(7)] = lattice
@@ -145,7 +120,7 @@ def lifting_cylinder(
     mass = model.body_mass[ids]
     half_thickness = pile.thickness_radii
 
-    rest_fill, fast_fill = _run_until_rest(model, data, ids, max_settle_s)
+    rest_fill, fast_fill = run_until_rest(model, data, ids, max_settle_s)
     fill_height = _fill_height(data.xpos[ids], half_thickness, radius, 2 * float(pile.radii.mean()))
     bulk_volume = math.pi * radius**2 * fill_height
 
@@ -154,7 +129,7 @@ def lifting_cylinder(
         data.mocap_pos[0, 2] += LIFT_SPEED_M_S * model.opt.timestep
         mujoco.mj_step(model, data)
     data.mocap_pos[0, 2] = 5.0  # out of the way
-    rest_heap, fast_heap = _run_until_rest(model, data, ids, max_settle_s)
+    rest_heap, fast_heap = run_until_rest(model, data, ids, max_settle_s)
     height, base, angle_hb, angle_fit = heap_angles(
         data.xpos[ids], half_thickness, ring_width=2 * float(pile.radii.mean())
     )

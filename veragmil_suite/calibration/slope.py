@@ -12,10 +12,9 @@ import xml.etree.ElementTree as ET
 import mujoco
 import numpy as np
 
+from veragmil_suite.calibration.scene import calibration_scene
 from veragmil_suite.foods import FoodSpec
-from veragmil_suite.models import contact_groups
 from veragmil_suite.models.grains import GrainPile
-from veragmil_suite.models.scoop_task import PHYSICS_SOLVER_OPTIONS, PHYSICS_TIMESTEP_S
 
 
 def slope_travel_m(food: FoodSpec, physics: str, slope_deg: float, duration_s: float = 2.0, seed: int = 0) -> float:
@@ -25,17 +24,7 @@ def slope_travel_m(food: FoodSpec, physics: str, slope_deg: float, duration_s: f
     """
     pile = GrainPile(food, 1, np.random.default_rng(seed), physics=physics)
     tilt = math.radians(slope_deg)
-    root = ET.Element("mujoco", model="slope")
-    option = PHYSICS_SOLVER_OPTIONS[physics]
-    opt = ET.SubElement(root, "option", timestep=repr(PHYSICS_TIMESTEP_S), **{k: str(v) for k, v in option.items()})
-    ET.SubElement(opt, "flag", eulerdamp="disable")
-    world = ET.SubElement(root, "worldbody")
-    plane = ET.SubElement(world, "geom", name="plane", type="box", size="0.5 0.5 0.01")
-    plane.set("pos", f"0 0 {-0.01 / math.cos(tilt)}")
-    plane.set("euler", f"0 {-tilt} 0")  # tilted about y: downhill is +x
-    plane.set("friction", "0.01 0 0")  # the grain's own friction acts
-    for key, value in contact_groups.SUPPORT.items():
-        plane.set(key, str(value))
+    root, world = calibration_scene("slope", physics, tilt_rad=tilt)
     world.append(pile.bodies()[0])
     model = mujoco.MjModel.from_xml_string(ET.tostring(root, encoding="unicode"))
     data = mujoco.MjData(model)

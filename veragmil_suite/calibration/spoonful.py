@@ -13,12 +13,11 @@ import mujoco
 import numpy as np
 from robosuite.utils.mjcf_utils import array_to_string
 
-from veragmil_suite.calibration.lifting_cylinder import REST_SPEED_M_S
+from veragmil_suite.calibration.scene import calibration_scene, run_until_rest
 from veragmil_suite.foods import SPOON_SURFACE, FoodSpec
 from veragmil_suite.models import contact_groups
 from veragmil_suite.models.dish import DishShape
 from veragmil_suite.models.grains import GrainPile
-from veragmil_suite.models.scoop_task import PHYSICS_SOLVER_OPTIONS, PHYSICS_TIMESTEP_S
 from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
 
 RIM_HEIGHT_M = 0.05  # the spoon's rim plane above the table
@@ -39,14 +38,7 @@ def level_spoonful_g(
     grain = food.grain(physics)
     n = max(6, int(2.0 * dish_volume_m3(SPOON_SHAPE) * 0.6 / grain.piece_volume_m3()))
     pile = GrainPile(food, n, np.random.default_rng(seed), physics=physics)
-    option = {**PHYSICS_SOLVER_OPTIONS[physics], **(solver_options or {})}
-    root = ET.Element("mujoco", model="spoonful")
-    opt = ET.SubElement(root, "option", timestep=repr(PHYSICS_TIMESTEP_S), **{k: str(v) for k, v in option.items()})
-    ET.SubElement(opt, "flag", eulerdamp="disable")
-    world = ET.SubElement(root, "worldbody")
-    floor = ET.SubElement(world, "geom", name="floor", type="box", pos="0 0 -0.01", size="0.5 0.5 0.01")
-    for key, value in contact_groups.SUPPORT.items():
-        floor.set(key, str(value))
+    root, world = calibration_scene("spoonful", physics, solver_options)
     spoon = ET.SubElement(world, "body", name="spoon", pos=f"0 0 {RIM_HEIGHT_M}")
     for g in SPOON_SHAPE.geoms():
         geom = ET.SubElement(spoon, "geom", name="spoon_" + g["name"], type=g["type"])
@@ -64,13 +56,7 @@ def level_spoonful_g(
     rim = np.array([0.0, 0.0, RIM_HEIGHT_M])
     data.qpos[adr[:, None] + np.arange(7)] = pile.lattice_qpos(SPOON_SHAPE, rim_center=rim)
     ids = np.array([model.body(b).id for b in pile.body_names])
-    while data.time < max_settle_s:
-        mujoco.mj_step(model, data, nstep=24)
-        speed = np.linalg.norm(data.cvel[ids, 3:], axis=1)
-        if not np.isfinite(speed).all():
-            raise RuntimeError("the grains blew up on the spoon (non-finite velocities)")
-        if data.time > 0.5 and speed.max() < REST_SPEED_M_S:
-            break
+    run_until_rest(model, data, ids, max_settle_s, min_s=0.5)
     pos = data.xpos[ids]
     a, b = SPOON_SHAPE.rim_semi_axes
     held = ((pos[:, 0] / a) ** 2 + (pos[:, 1] / b) ** 2 <= 1.0) & (pos[:, 2] <= RIM_HEIGHT_M)

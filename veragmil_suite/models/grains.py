@@ -108,8 +108,7 @@ class GrainPile:
         grain = self.grain
         solref = array_to_string(grain.solref)
         solimp = array_to_string(GRAIN_SOLIMP)
-        # condim 3 ignores the torsional and rolling entries; Table I grains keep MuJoCo's usual small ones
-        friction = array_to_string(grain.friction_triplet if grain.condim == 6 else (grain.friction, 0.005, 0.0001))
+        friction = array_to_string(grain.friction_triplet)
         out = []
         for i, geoms in enumerate(self.geoms):
             body = new_body(name=f"{self.name}{i}", pos=(0, 0, 0))

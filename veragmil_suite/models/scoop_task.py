@@ -17,27 +17,21 @@ from veragmil_suite.models.grains import GrainPile
 # cost of a simulated second against robosuite's 2 ms with piles as still (grain contacts use a 20 ms time
 # constant, above MuJoCo's 2-step minimum).
 PHYSICS_TIMESTEP_S = 1.0 / 240.0
-# Solver settings by physics (veragmil_suite.foods.PHYSICS).
+_TABLE1_SOLVER_OPTIONS = {
+    "solver": "CG",
+    "iterations": "30",
+    "ls_iterations": "10",
+    "cone": "elliptic",
+    # robosuite's base model sets impratio 20 for crisp finger grasps; with 30 iterations it starves the normal
+    # forces and rice leaked through the bowl's floor (4 of 200 grains within 0.25 s).
+    "impratio": "1",
+}
+# Solver settings by physics (veragmil_suite.foods.PHYSICS). Calibrated: soft friction (impratio 1) lets grains creep
+# down a heap below their friction angle (rice heaped at 9 degrees); 10 heaps rice as 100 does (22-26 degrees).
+# Stiffer friction needs more iterations to converge: impratio 3 or 10 on 30 threw grains out of the workspace.
 PHYSICS_SOLVER_OPTIONS = {
-    "table1": {
-        "solver": "CG",
-        "iterations": "30",
-        "ls_iterations": "10",
-        "cone": "elliptic",
-        # robosuite's base model sets impratio 20 for crisp finger grasps; with 30 iterations it starves the normal
-        # forces and rice leaked through the bowl's floor (4 of 200 grains within 0.25 s).
-        "impratio": "1",
-    },
-    "calibrated": {
-        "solver": "CG",
-        "iterations": "60",
-        "ls_iterations": "10",
-        "cone": "elliptic",
-        # soft friction (impratio 1) lets grains creep down a heap below their friction angle (rice heaped at 9
-        # degrees); 10 heaps rice as 100 does (22-26 degrees). Stiffer friction needs more iterations to converge:
-        # impratio 3 or 10 on 30 threw grains out of the workspace in an expert scoop
-        "impratio": "10",
-    },
+    "table1": _TABLE1_SOLVER_OPTIONS,
+    "calibrated": {**_TABLE1_SOLVER_OPTIONS, "iterations": "60", "impratio": "10"},
 }
 # MuJoCo's island sleeping (mjENBL_SLEEP, MuJoCo >= 3.8): a tree whose every velocity stays under this tolerance
 # (m/s and rad/s, scaled by MuJoCo per degree of freedom) falls asleep and costs no collision or solver work until

@@ -720,6 +720,7 @@ def _check_env_value(name: str, value: Any, kwargs: dict, default: Any) -> None:
     if value is None and default is None:
         return
     kinds: dict[str, Kind] = {"food": food, "robots": robot, "horizon": count, "seed": seed, "pile_variants": count}
+    kinds["physics"] = physics
     kinds.update(camera_heights=count, camera_widths=count)
     if name in kinds:
         items = value if name == "robots" and isinstance(value, list) else [value]
@@ -740,9 +741,9 @@ def _check_env_value(name: str, value: Any, kwargs: dict, default: Any) -> None:
 
         # the food's own limit, or without a food the largest (each food's is checked where it is known)
         foods = [FOODS[kwargs["food"]]] if kwargs.get("food") in FOODS else list(FOODS.values())
-        physics = kwargs.get("physics") if kwargs.get("physics") in PHYSICS else DEFAULT_PHYSICS
-        spec = max(foods, key=lambda f: f.grain(physics).default_grains)
-        limit = MAX_GRAINS_PER_DEFAULT * spec.grain(physics).default_grains
+        named = kwargs.get("physics") if kwargs.get("physics") in PHYSICS else DEFAULT_PHYSICS
+        spec = max(foods, key=lambda f: f.grain(named).default_grains)
+        limit = MAX_GRAINS_PER_DEFAULT * spec.grain(named).default_grains
         if value > limit:
             what = spec.name if len(foods) == 1 else f"any food ({spec.name})"
             raise argparse.ArgumentTypeError(
