@@ -360,6 +360,9 @@ class VRServer:
             self.host,
             self.requested_port,
             reuse_address=True,
+            # asyncio accepts up to `backlog` sockets a wakeup, each holding a file until the pool closes it: a
+            # backlog of the cap keeps a flood's files near three caps on any machine (100, asyncio's default: 300+)
+            backlog=self.max_connections,
         )
         self.port = self._tcp_server.sockets[0].getsockname()[1]
 
