@@ -360,9 +360,10 @@ class VRServer:
             self.host,
             self.requested_port,
             reuse_address=True,
-            # asyncio accepts up to `backlog` sockets a wakeup, each holding a file until the pool closes it: a
-            # backlog of the cap keeps a flood's files near three caps on any machine (100, asyncio's default: 300+)
-            backlog=self.max_connections,
+            # asyncio accepts up to `backlog` sockets a wakeup, and a socket evicted for them closes a wakeup later: a
+            # flood holds at most the cap and about three backlogs of files (asyncio's default, 100: over 300). Twice
+            # the cap: a smaller queue makes clients wait out SYN retries (1 s each) under the same flood
+            backlog=2 * self.max_connections,
         )
         self.port = self._tcp_server.sockets[0].getsockname()[1]
 
