@@ -1,0 +1,48 @@
+"""The scripted expert on one food and physics, seed by seed: where the grains are at each phase, and the rate.
+
+    python results/calibration/exploration/expert_probe.py FOOD PHYSICS SEEDS [MAKE_KWARGS_JSON]
+    SOLREF=0.04 python ... : the grains' contact time constant (s) set after each reset
+
+Prints per seed: success, grains and grams in the spoon at the end, grains spilled (outside the bowl's rim), steps,
+control steps a second (resets untimed), and at each phase's start the grains in the spoon / spilled.
+"""
+
+import json
+import os
+import sys
+import time
+
+import veragmil_suite  # noqa: F401
+from veragmil_suite.bench import make_env
+from veragmil_suite.expert import ScriptedScooper
+
+food, physics = sys.argv[1], sys.argv[2]
+seeds = [int(s) for s in sys.argv[3].split(",")]
+kwargs = json.loads(sys.argv[4]) if len(sys.argv) > 4 else {}
+env = make_env(food, physics=physics, pile_variants=3, **kwargs)
+wins = 0
+for seed in seeds:
+    obs = env.reset(seed=seed)
+    if os.environ.get("SOLREF"):
+        grains = set(env.grain_body_ids)
+        geoms = [i for i in range(env.sim.model.ngeom) if env.sim.model.geom_bodyid[i] in grains]
+        env.sim.model._model.geom_solref[geoms, 0] = float(os.environ["SOLREF"])
+    expert = ScriptedScooper(env, "expert", seed=seed)
+    phase, log, start = None, [], time.time()
+    for step in range(400):
+        action = expert.agent(obs)
+        if action is None:
+            break
+        obs, _, _, info = env.step(action)
+        if expert.phase != phase:
+            phase = expert.phase
+            log.append(f"{phase}@{step}:sp{info['grains_in_spoon']}/sl{info['grains_spilled']}")
+        if info["success"]:
+            break
+    wins += info["success"]
+    rate = step / (time.time() - start)
+    print(
+        seed, "success", info["success"], "spoon", info["grains_in_spoon"], f"{info['spoon_mass_g']:.2f}g",
+        "spilled", info["grains_spilled"], "steps", step, f"{rate:.1f}sps", " ".join(log), flush=True,
+    )  # fmt: skip
+print("wins", wins, "/", len(seeds))
