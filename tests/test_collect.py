@@ -30,7 +30,7 @@ def _headless_env():
 
 def test_scripted_collection_runs_headless_in_its_automation_form(tmp_path):
     out = tmp_path / "out.hdf5"
-    args = ["--device", "scripted", "--food", "rice", "--episodes", "2", "--output", str(out)]
+    args = ["--device", "scripted", "--food", "rice", "--n-grains", "80", "--episodes", "2", "--output", str(out)]
     result = subprocess.run(
         [str(BIN / "veragmil-collect"), *args],
         cwd=tmp_path,

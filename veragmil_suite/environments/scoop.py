@@ -20,7 +20,16 @@ from veragmil_suite.controllers import (
     untuned_controller_difference,
 )
 from veragmil_suite.fast_control import use_block_mass_matrix
-from veragmil_suite.foods import DEFAULT_PHYSICS, FOODS, PHYSICS, FoodSpec, GrainModel, check_physics, get_food
+from veragmil_suite.foods import (
+    DEFAULT_PHYSICS,
+    FOODS,
+    PHYSICS,
+    SPOON_CONTACT_SOLREF,
+    FoodSpec,
+    GrainModel,
+    check_physics,
+    get_food,
+)
 from veragmil_suite.humanoid import SPOON_ARM, HumanoidLayout, check_robot, humanoid_layout, self_contact_excludes
 from veragmil_suite.kinematics import solve_pose_ik
 from veragmil_suite.models.arena import ScoopArena
@@ -367,6 +376,13 @@ class ScoopGranular(ManipulationEnv):
             mount = find_elements(robot_model.worldbody, "body", {"name": gripper.root_body}, return_first=True)
             mount.set("quat", array_to_string(self.humanoid.spoon_mount_quat_wxyz))
         robot_model.set_base_xpos(xpos)
+        solref = SPOON_CONTACT_SOLREF[self._env_physics]
+        if solref is not None:
+            # the spoon's spring wins the mix with any grain's (MuJoCo weighs two geoms' solref by their solmix)
+            for name in self.robots[0].gripper[SPOON_ARM].important_geoms["spoon"]:
+                geom = find_elements(robot_model.worldbody, "geom", {"name": name}, return_first=True)
+                geom.set("solref", array_to_string(solref))
+                geom.set("solmix", "1000")
 
         mujoco_arena = ScoopArena(
             table_full_size=self.table_full_size, table_offset=self.table_offset, bowl_xy=self.bowl_nominal_xy

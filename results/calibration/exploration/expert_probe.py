@@ -2,6 +2,7 @@
 
     python results/calibration/exploration/expert_probe.py FOOD PHYSICS SEEDS [MAKE_KWARGS_JSON]
     SOLREF=0.04 python ... : the grains' contact time constant (s) set after each reset
+    SPOON_SOLREF=0.08 python ... : the spoon's, for its contacts alone
 
 Prints per seed: success, grains and grams in the spoon at the end, grains spilled (outside the bowl's rim), steps,
 control steps a second (resets untimed), and at each phase's start the grains in the spoon / spilled.
@@ -11,6 +12,8 @@ import json
 import os
 import sys
 import time
+
+import numpy as np
 
 import veragmil_suite  # noqa: F401
 from veragmil_suite.bench import make_env
@@ -27,6 +30,11 @@ for seed in seeds:
         grains = set(env.grain_body_ids)
         geoms = [i for i in range(env.sim.model.ngeom) if env.sim.model.geom_bodyid[i] in grains]
         env.sim.model._model.geom_solref[geoms, 0] = float(os.environ["SOLREF"])
+    if os.environ.get("SPOON_SOLREF"):  # the spoon's contacts alone: its solref dominates the mix (solmix)
+        model = env.sim.model
+        spoon = [i for i in range(model.ngeom) if (model.geom_id2name(i) or "").startswith("gripper0_right_spoon")]
+        model._model.geom_solref[spoon, 0] = float(os.environ["SPOON_SOLREF"])
+        model._model.geom_solmix[spoon] = 1e3
     expert = ScriptedScooper(env, "expert", seed=seed)
     phase, log, start = None, [], time.time()
     for step in range(400):
@@ -39,10 +47,12 @@ for seed in seeds:
             log.append(f"{phase}@{step}:sp{info['grains_in_spoon']}/sl{info['grains_spilled']}")
         if info["success"]:
             break
+    grains = env.sim.data.body_xpos[env.grain_body_ids]
+    reach = float(np.linalg.norm(grains - env._rim_center(), axis=1).max())
     wins += info["success"]
     rate = step / (time.time() - start)
     print(
         seed, "success", info["success"], "spoon", info["grains_in_spoon"], f"{info['spoon_mass_g']:.2f}g",
-        "spilled", info["grains_spilled"], "steps", step, f"{rate:.1f}sps", " ".join(log), flush=True,
+        "spilled", info["grains_spilled"], f"reach {reach:.2f}m", "steps", step, f"{rate:.1f}sps", " ".join(log), flush=True,
     )  # fmt: skip
 print("wins", wins, "/", len(seeds))
