@@ -48,7 +48,7 @@ quickstart: setup
 test: test-setup
 	$(BIN)/ruff check veragmil_suite tests scripts
 	$(BIN)/ruff format --check veragmil_suite tests scripts
-	$(BIN)/python -m pytest -q -n 2 -m "not realtime" tests
+	$(BIN)/python -m pytest -q -n 2 --dist worksteal -m "not realtime" tests
 	$(BIN)/python -m pytest -q -m realtime tests
 
 lint: setup
