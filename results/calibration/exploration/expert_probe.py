@@ -3,6 +3,7 @@
     python results/calibration/exploration/expert_probe.py FOOD PHYSICS SEEDS [MAKE_KWARGS_JSON]
     SOLREF=0.04 python ... : the grains' contact time constant (s) set after each reset
     SPOON_SOLREF=0.08 python ... : the spoon's, for its contacts alone
+    PROFILE=spacemouse python ... : another operator profile (veragmil_suite.expert.PROFILES)
 
 Prints per seed: success, grains and grams in the spoon at the end, grains spilled (outside the bowl's rim), steps,
 control steps a second (resets untimed), and at each phase's start the grains in the spoon / spilled.
@@ -35,9 +36,9 @@ for seed in seeds:
         spoon = [i for i in range(model.ngeom) if (model.geom_id2name(i) or "").startswith("gripper0_right_spoon")]
         model._model.geom_solref[spoon, 0] = float(os.environ["SPOON_SOLREF"])
         model._model.geom_solmix[spoon] = 1e3
-    expert = ScriptedScooper(env, "expert", seed=seed)
+    expert = ScriptedScooper(env, os.environ.get("PROFILE", "expert"), seed=seed)
     phase, log, start = None, [], time.time()
-    for step in range(400):
+    for step in range(600):
         action = expert.agent(obs)
         if action is None:
             break
