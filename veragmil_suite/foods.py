@@ -354,8 +354,8 @@ _REFERENCE = {
     "flakes": FoodReference(bulk_density_g_cm3=Measured(0.092, 0.122, "g/cm3", _FLAKES_PATENT)),
 }
 
-# Calibrated grain models: see docs/physics.md for how each value was chosen, and
-# results/calibration/ for the measurements (python -m veragmil_suite.calibration).
+# Calibrated grain models: results/calibration/RUN.md says how each value was chosen and what it measures
+# (python -m veragmil_suite.calibration).
 _CALIBRATED: dict[str, GrainModel] = {
     # name: GrainModel(shape, size range m, aspect, density kg/m^3, friction, restitution, rolling m, torsional m,
     #                  margin m, default grains)
