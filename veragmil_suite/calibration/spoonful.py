@@ -18,7 +18,7 @@ from veragmil_suite.foods import SPOON_SURFACE, FoodSpec
 from veragmil_suite.models import contact_groups
 from veragmil_suite.models.dish import DishShape
 from veragmil_suite.models.grains import GrainPile
-from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
+from veragmil_suite.models.spoon_gripper import SPOON_SHAPE, spoon_contact
 
 RIM_HEIGHT_M = 0.05  # the spoon's rim plane above the table
 
@@ -46,7 +46,7 @@ def level_spoonful_g(
         geom.set("pos", array_to_string(g["pos"]))
         geom.set("quat", array_to_string(g["quat"]))
         geom.set("friction", array_to_string((SPOON_SURFACE.friction, 0.005, 0.0001)))
-        for key, value in contact_groups.SHELL.items():
+        for key, value in {**contact_groups.SHELL, **spoon_contact(physics)}.items():
             geom.set(key, str(value))
     for body in pile.bodies():
         world.append(body)

@@ -20,16 +20,7 @@ from veragmil_suite.controllers import (
     untuned_controller_difference,
 )
 from veragmil_suite.fast_control import use_block_mass_matrix
-from veragmil_suite.foods import (
-    DEFAULT_PHYSICS,
-    FOODS,
-    PHYSICS,
-    SPOON_CONTACT_SOLREF,
-    FoodSpec,
-    GrainModel,
-    check_physics,
-    get_food,
-)
+from veragmil_suite.foods import DEFAULT_PHYSICS, FOODS, PHYSICS, FoodSpec, GrainModel, check_physics, get_food
 from veragmil_suite.humanoid import SPOON_ARM, HumanoidLayout, check_robot, humanoid_layout, self_contact_excludes
 from veragmil_suite.kinematics import solve_pose_ik
 from veragmil_suite.models.arena import ScoopArena
@@ -44,7 +35,7 @@ from veragmil_suite.models.scoop_task import (
     check_physics_timestep,
     check_sleep_tolerance,
 )
-from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
+from veragmil_suite.models.spoon_gripper import SPOON_SHAPE, spoon_contact
 from veragmil_suite.settling import SettledPile, pile_key, settle
 from veragmil_suite.sim_xml import keep_sim_xml
 
@@ -376,13 +367,10 @@ class ScoopGranular(ManipulationEnv):
             mount = find_elements(robot_model.worldbody, "body", {"name": gripper.root_body}, return_first=True)
             mount.set("quat", array_to_string(self.humanoid.spoon_mount_quat_wxyz))
         robot_model.set_base_xpos(xpos)
-        solref = SPOON_CONTACT_SOLREF[self._env_physics]
-        if solref is not None:
-            # the spoon's spring wins the mix with any grain's (MuJoCo weighs two geoms' solref by their solmix)
-            for name in self.robots[0].gripper[SPOON_ARM].important_geoms["spoon"]:
-                geom = find_elements(robot_model.worldbody, "geom", {"name": name}, return_first=True)
-                geom.set("solref", array_to_string(solref))
-                geom.set("solmix", "1000")
+        for name in self.robots[0].gripper[SPOON_ARM].important_geoms["spoon"]:
+            geom = find_elements(robot_model.worldbody, "geom", {"name": name}, return_first=True)
+            for key, value in spoon_contact(self._env_physics).items():
+                geom.set(key, value)
 
         mujoco_arena = ScoopArena(
             table_full_size=self.table_full_size, table_offset=self.table_offset, bowl_xy=self.bowl_nominal_xy

@@ -9,7 +9,7 @@ from robosuite.utils.mjcf_utils import array_to_string, find_elements, new_geom
 from robosuite.utils.transform_utils import convert_quat, mat2quat
 
 from veragmil_suite.asset_paths import asset_path
-from veragmil_suite.foods import SPOON_SURFACE
+from veragmil_suite.foods import SPOON_CONTACT_SOLREF, SPOON_SURFACE
 from veragmil_suite.models import contact_groups
 from veragmil_suite.models.dish import DishShape
 
@@ -24,6 +24,13 @@ SPOON_SHAPE = DishShape(
 )
 HANDLE_LENGTH_M = 0.12  # flange to the back of the spoon's rim
 BEND_RAD = np.pi / 4  # the spoon's bowl is bent this far from the handle's axis
+
+
+def spoon_contact(physics: str) -> dict[str, str]:
+    """The MJCF attributes of the spoon's collision geoms that depend on the physics (foods.SPOON_CONTACT_SOLREF):
+    the spoon's spring wins the mix with any grain's (MuJoCo weighs two geoms' solref by their solmix)."""
+    solref = SPOON_CONTACT_SOLREF[physics]
+    return {} if solref is None else {"solref": array_to_string(solref), "solmix": "1000"}
 
 
 def spoon_frame_in_flange() -> tuple[np.ndarray, np.ndarray]:
