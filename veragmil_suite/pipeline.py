@@ -66,7 +66,7 @@ class StageError(RuntimeError):
 
 @dataclass
 class PipelineSettings:
-    """Sizes of one run: the small defaults finish in minutes on 2 cores; the paper's sizes are in the README.
+    """Sizes of one run: the small defaults finish in minutes on 2 cores; the paper's sizes are in docs/study.md.
 
     ``demos_per_food`` and ``eval_steps`` may list several values (learning curves): each demo count trains its
     own model on the first N demos of each food, and each model is evaluated at every step count of

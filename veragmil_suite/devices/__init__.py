@@ -1,7 +1,7 @@
 """Teleoperation devices: ``VRDevice`` (a Meta Quest or any WebXR headset, through its browser), with the options
 of its server (``VRServerOptions``) and of its camera stream (``VRStreamOptions``).
 
-See ``README_VR.md`` beside this file for setup (USB and Wi-Fi), the controls and the message schema.
+See ``docs/vr.md`` in the repository for setup (USB and Wi-Fi), the controls and the message schema.
 """
 
 import importlib

@@ -36,7 +36,8 @@ PHYSICS_SOLVER_OPTIONS = {
 # MuJoCo's island sleeping (mjENBL_SLEEP, MuJoCo >= 3.8): a tree whose every velocity stays under this tolerance
 # (m/s and rad/s, scaled by MuJoCo per degree of freedom) falls asleep and costs no collision or solver work until
 # something awake touches its island. MuJoCo's default, 1e-4, is under a settled pile's own creep: no grain slept.
-# 3e-3 is the largest measured at which the expert's success, load and spillage stay those of sleeping off (README).
+# 3e-3 is the largest measured at which the expert's success, load and spillage stay those of sleeping off
+# (results/sleep_physics/).
 GRAIN_SLEEP_TOLERANCE = 3e-3
 
 

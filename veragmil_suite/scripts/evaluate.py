@@ -7,7 +7,7 @@ write the paper's Tables II and III (markdown, CSV, JSON), a success bar chart a
 
 Episode i of every food runs with env seed --seed + i for every agent (the same bowls for all). Table III's time
 is the mean over successful episodes ("-" when none succeeded); failures' episode lengths stay in episodes.csv.
-With --ray [ADDRESS] every episode is a Ray task of one CPU (on a cluster: see the README), scored on the piles
+With --ray [ADDRESS] every episode is a Ray task of one CPU (on a cluster: docs/study.md), scored on the piles
 settled on this machine.
 """
 

@@ -4,7 +4,7 @@ veragmil-quickstart: the main job on a small default, headless.
 Records a few scripted demonstrations of each training food, trains robomimic's BC on them briefly, evaluates the
 checkpoint, the scripted expert itself and the shipped BC checkpoint trained at the study's size (30 noise-injected
 demos per food, 50k gradient steps; models/checkpoints/README.md) on a seen food (rice) and an unseen one (peas),
-and prints the paper's tables. Every stage is one of our console programs; larger runs: veragmil-study (README).
+and prints the paper's tables. Every stage is one of our console programs; larger runs: veragmil-study (docs/study.md).
 """
 
 from __future__ import annotations

@@ -9,10 +9,10 @@ Tables II and III (markdown, CSV, JSON), the stage table and a bar chart land in
 
 Run again with the same --output-dir, an interrupted or partial study resumes: recordings, trainings and
 evaluation episodes already complete are skipped (each named), so a grid can be run in pieces. With --ray [ADDRESS]
-the pieces run as Ray tasks, on this machine or spread over a cluster's nodes (README: "On a cluster").
+the pieces run as Ray tasks, on this machine or spread over a cluster's nodes (docs/study.md: "On a cluster").
 
     veragmil-study                                   # small default: minutes per model on 2 cores
-    veragmil-study --demos-per-food 30 --epochs 2000 --episodes 50    # the paper's sizes (see the README)
+    veragmil-study --demos-per-food 30 --epochs 2000 --episodes 50    # the paper's sizes (docs/study.md)
     veragmil-study --demos-per-food 30 --epochs 100 --steps-per-epoch 500 --train-seeds 1 2 3   # mean over 3 seeds
     veragmil-study --algos bc diffusion_policy --obs-sets object no-load   # with and without grain counts
     veragmil-study --demos-per-food 30 --epochs 2000 --episodes 50 --ray HEAD:6379 --output-dir /shared/study
