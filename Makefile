@@ -56,4 +56,4 @@ lint: setup
 	$(BIN)/ruff format --check veragmil_suite tests scripts docs/scoop_png.py
 
 bench: setup
-	$(BIN)/python -m veragmil_suite.bench
+	$(BIN)/python -m veragmil_suite.scripts.bench

@@ -13,11 +13,11 @@ RAY_VERSION = "2.60.0"
 # Folders of data installed as packages of their own (setuptools installs data only as a package's files):
 # models/assets and configs/json stay at the repository's top level and become veragmil_suite.assets (one
 # package per folder) and veragmil_suite.configs, so a non-editable install finds them from any directory; the
-# WebXR page's folder has no __init__.py and is the package veragmil_suite.devices.web.
+# WebXR page's folder has no __init__.py and is the package veragmil_suite.devices.vr.web.
 ASSET_DIRS = sorted(d for d, _, _ in os.walk(os.path.join("models", "assets")))
 DATA_PACKAGES = {"veragmil_suite.assets" + d[len("models/assets") :].replace(os.sep, "."): d for d in ASSET_DIRS}
 DATA_PACKAGES["veragmil_suite.configs"] = os.path.join("configs", "json")
-WEB_PACKAGE = "veragmil_suite.devices.web"
+WEB_PACKAGE = "veragmil_suite.devices.vr.web"
 
 setup(
     name="veragmil_suite",
@@ -32,7 +32,7 @@ setup(
         "robosuite==1.5.2",
         f"mujoco=={MUJOCO_VERSION}",
         "robomimic==0.3.0",
-        # the Gymnasium API (veragmil_suite.gym_env); robosuite's GymWrapper imports it
+        # the Gymnasium API (veragmil_suite.wrappers.gym_env); robosuite's GymWrapper imports it
         "gymnasium==1.4.0",
         "torch>=2.0",
         "h5py>=3.8",
@@ -44,13 +44,13 @@ setup(
         "imageio>=2.30",
         "imageio-ffmpeg>=0.4.9",
         "matplotlib>=3.7",
-        # Diffusion Policy's noise schedulers and EMA (veragmil_suite.robomimic_algos), as robomimic 0.5 uses them;
+        # Diffusion Policy's noise schedulers and EMA (veragmil_suite.learning.algos), as robomimic 0.5 uses them;
         # 0.36 is the newest that shares huggingface-hub (< 0.36) with lerobot-dataset 0.4.4 (extra lerobot)
         "diffusers==0.36.0",
     ],
     extras_require={
         "test": ["pytest>=7", "pytest-xdist==3.8.0", "ruff>=0.5"],
-        # ray: --ray of veragmil-collect, veragmil-evaluate and veragmil-study (veragmil_suite.distributed)
+        # ray: --ray of veragmil-collect, veragmil-evaluate and veragmil-study (veragmil_suite.utils.distributed)
         "ray": [f"ray=={RAY_VERSION}"],
         # the Unitree G1 (robots="G1FixedLowerBody" or "G1ArmsOnly"); robosuite imports it when it is installed
         "humanoid": ["robosuite-models==1.0.0"],
@@ -81,7 +81,7 @@ setup(
             "veragmil-evaluate=veragmil_suite.scripts.evaluate:main",
             "veragmil-study=veragmil_suite.scripts.study:main",
             "veragmil-quickstart=veragmil_suite.scripts.quickstart:main",
-            "veragmil-bench=veragmil_suite.bench:main",
+            "veragmil-bench=veragmil_suite.scripts.bench:main",
             "veragmil-export-lerobot=veragmil_suite.scripts.export_lerobot:main",
         ]
     },

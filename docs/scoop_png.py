@@ -12,7 +12,7 @@ import robosuite  # noqa: E402
 from PIL import Image  # noqa: E402
 
 import veragmil_suite  # noqa: E402, F401
-from veragmil_suite.expert import ScriptedScooper  # noqa: E402
+from veragmil_suite.devices.expert import ScriptedScooper  # noqa: E402
 
 env = robosuite.make("ScoopGranular", robots="XArm7", food="rice", has_renderer=False, has_offscreen_renderer=True)
 obs = env.reset(seed=3)

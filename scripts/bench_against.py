@@ -14,7 +14,8 @@ the host stayed the same through the run.
 
 Each side runs the episodes of seeds 0..episodes-1 on pile variant 0 (resets untimed; a first untimed episode
 settles or loads the piles). A side's own defaults apply (this checkout's sleeping among them); ``--sleep
-off`` switches this checkout's sleeping off, ``--physics`` picks this checkout's physics (veragmil_suite.foods.PHYSICS).
+off`` switches this checkout's sleeping off, ``--physics`` picks this checkout's physics
+(veragmil_suite.models.foods.PHYSICS).
 """
 
 from __future__ import annotations
@@ -37,9 +38,9 @@ def _child(food: str, episodes: int, lift_steps: int, sleep_off: bool, physics: 
     import robosuite
 
     import veragmil_suite
-    from veragmil_suite.bench import _env_rate  # the same in both checkouts: steps/s held still, after one step
-    from veragmil_suite.episode import run_until_done
-    from veragmil_suite.expert import ScriptedScooper
+    from veragmil_suite.devices.expert import ScriptedScooper
+    from veragmil_suite.environments.episode import run_until_done
+    from veragmil_suite.scripts.bench import _env_rate  # the same in both checkouts: steps/s held still, after one step
 
     headless = dict(has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False)
     lift = robosuite.make("Lift", robots="XArm7", **headless)
@@ -113,7 +114,7 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     if not (args.base / "veragmil_suite" / "__init__.py").is_file():
         parser.error(f"--base {args.base} holds no veragmil_suite package (a checkout's top level is expected)")
-    from veragmil_suite.foods import FOODS, PHYSICS
+    from veragmil_suite.models.foods import FOODS, PHYSICS
 
     if args.physics is not None and args.physics not in PHYSICS:
         parser.error(f"unknown physics {args.physics!r}; accepted physics: {', '.join(PHYSICS)}")

@@ -8,10 +8,10 @@ spoon's pose to its target. The spoon first rises 8 cm clear of the pile, then t
 (10 cm and 1 cm translations, 10 deg turns) and is held; the error is the distance from the target once the hold
 is over. Configurations:
 
-- ours: ScoopGranular's default OSC_POSE (veragmil_suite.controllers.OSC_KP)
+- ours: ScoopGranular's default OSC_POSE (veragmil_suite.controllers.scoop_config.OSC_KP)
 - robosuite: robosuite's OSC_POSE defaults (kp=150)
 - robosuite-frictionless: the same with the arm's joint friction (frictionloss) set to 0: the cause of its error
-- ik: IK_POSE as veragmil_suite.controllers configures it
+- ik: IK_POSE as veragmil_suite.controllers.scoop_config configures it
 
 Run on an otherwise idle machine; the figures do not depend on its speed.
 """
@@ -26,7 +26,7 @@ import robosuite.utils.transform_utils as T
 from robosuite.controllers import load_part_controller_config
 
 import veragmil_suite  # noqa: F401  (registers ScoopGranular)
-from veragmil_suite.controllers import ROBOSUITE_OSC_KP, load_scoop_controller_config
+from veragmil_suite.controllers.scoop_config import ROBOSUITE_OSC_KP, load_scoop_controller_config
 
 CONFIGS = ("ours", "robosuite", "robosuite-frictionless", "ik")
 CLEARANCE_M = 0.08

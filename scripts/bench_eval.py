@@ -2,8 +2,8 @@
 Evaluation throughput of veragmil-evaluate: episodes per minute with 1 and 2 worker processes, and their ratio.
 
 The same episodes (same agent, food and seeds, so the same work) run once per process count through
-veragmil_suite.evaluation.evaluate, timed from the call to the last record: worker start-up is included, as a user
-pays it. A warm-up episode first fills the settled-pile cache. The issue's target is a ratio of at least 1.7.
+veragmil_suite.evaluation.scoring.evaluate, timed from the call to the last record: worker start-up is included, as a
+user pays it. A warm-up episode first fills the settled-pile cache. The issue's target is a ratio of at least 1.7.
 
     python scripts/bench_eval.py                                   # the scripted expert on pasta
     python scripts/bench_eval.py --food rice --episodes 6 --checkpoint runs/x/models/model_epoch_20.pth
@@ -18,9 +18,11 @@ import sys
 import time
 from pathlib import Path
 
-# OSMesa whatever the display, set before robosuite is imported: veragmil_suite.rendering is run from its file, as
+# OSMesa whatever the display, set before robosuite is imported: veragmil_suite.utils.rendering is run from its file, as
 # importing it through the package would import robosuite first
-runpy.run_path(str(Path(__file__).resolve().parents[1] / "veragmil_suite" / "rendering.py"))["use_headless_rendering"]()
+runpy.run_path(str(Path(__file__).resolve().parents[1] / "veragmil_suite" / "utils" / "rendering.py"))[
+    "use_headless_rendering"
+]()
 os.environ.setdefault("PYNPUT_BACKEND", "dummy")
 
 TARGET_RATIO = 1.7
@@ -29,7 +31,7 @@ SECONDS_PER_MINUTE = 60.0
 
 def bench(spec: str, food: str, episodes: int, processes: int, horizon: int, seed: int) -> dict:
     """Runs ``episodes`` episodes of one agent on ``food`` in ``processes`` workers; returns the rates."""
-    from veragmil_suite.evaluation import evaluate
+    from veragmil_suite.evaluation.scoring import evaluate
 
     start = time.perf_counter()
     result = evaluate(

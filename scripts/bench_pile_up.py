@@ -17,11 +17,11 @@ import time
 
 import numpy as np
 
-from veragmil_suite.bench import make_env
-from veragmil_suite.episode import run_until_done
-from veragmil_suite.expert import ScriptedScooper
-from veragmil_suite.foods import FOODS
+from veragmil_suite.devices.expert import ScriptedScooper
+from veragmil_suite.environments.episode import run_until_done
+from veragmil_suite.models.foods import FOODS
 from veragmil_suite.models.scoop_task import GRAIN_SLEEP_TOLERANCE
+from veragmil_suite.scripts.bench import make_env
 
 
 def timed_episodes(food: str, sleep_tolerance: float | None, seeds: int) -> list[tuple[np.ndarray, np.ndarray]]:

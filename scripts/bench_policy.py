@@ -27,9 +27,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE_DATA = ROOT / "demos" / "scoop.hdf5"
 
-# OSMesa whatever the display, set before robosuite is imported: veragmil_suite.rendering is run from its file, as
+# OSMesa whatever the display, set before robosuite is imported: veragmil_suite.utils.rendering is run from its file, as
 # importing it through the package would import robosuite first
-runpy.run_path(str(ROOT / "veragmil_suite" / "rendering.py"))["use_headless_rendering"]()
+runpy.run_path(str(ROOT / "veragmil_suite" / "utils" / "rendering.py"))["use_headless_rendering"]()
 os.environ.setdefault("PYNPUT_BACKEND", "dummy")
 
 # (scheduler, denoising steps, actions executed per prediction): the config's case first
@@ -107,7 +107,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--threads", type=int, nargs="+", default=[1, 2], help="torch thread counts")
     args = parser.parse_args(argv)
 
-    from veragmil_suite import robomimic_compat
+    from veragmil_suite.learning import robomimic_compat
 
     robomimic_compat.install()
     import torch

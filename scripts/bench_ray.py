@@ -27,7 +27,9 @@ import time
 from pathlib import Path
 
 # OSMesa whatever the display, set before robosuite is imported (see scripts/bench_eval.py)
-runpy.run_path(str(Path(__file__).resolve().parents[1] / "veragmil_suite" / "rendering.py"))["use_headless_rendering"]()
+runpy.run_path(str(Path(__file__).resolve().parents[1] / "veragmil_suite" / "utils" / "rendering.py"))[
+    "use_headless_rendering"
+]()
 os.environ.setdefault("PYNPUT_BACKEND", "dummy")
 
 FOOD = "pasta"
@@ -53,9 +55,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--repeats", type=int, default=2, help="measurements of each side (the fastest is kept)")
     args = p.parse_args(argv)
 
-    from veragmil_suite.distributed import THIS_MACHINE, ray_session, run_pieces
-    from veragmil_suite.evaluation import evaluate
-    from veragmil_suite.pipeline import _console, _train_piece, training_config, training_resources
+    from veragmil_suite.evaluation.scoring import evaluate
+    from veragmil_suite.study.pipeline import _console, _train_piece, training_config, training_resources
+    from veragmil_suite.utils.distributed import THIS_MACHINE, ray_session, run_pieces
 
     print(f"load average before: {_load()}", flush=True)
     work = Path(tempfile.mkdtemp(prefix="bench_ray_"))

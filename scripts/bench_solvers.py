@@ -22,8 +22,8 @@ import time
 import mujoco
 import numpy as np
 
-from veragmil_suite.bench import make_env  # every grain awake: its sleep_tolerance is None
-from veragmil_suite.foods import FOODS
+from veragmil_suite.models.foods import FOODS
+from veragmil_suite.scripts.bench import make_env  # every grain awake: its sleep_tolerance is None
 
 # (label, MuJoCo option attributes changed from the task's); the first row is the task's own
 SETTINGS = (

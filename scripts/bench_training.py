@@ -31,9 +31,9 @@ ROOT = Path(__file__).resolve().parents[1]
 EPOCH_PARTS = ("Data_Loading", "Process_Batch", "Train_Batch", "Log_Info")
 CONFIG_DIR = ROOT / "configs" / "json"
 
-# OSMesa whatever the display, set before robosuite is imported: veragmil_suite.rendering is run from its file, as
+# OSMesa whatever the display, set before robosuite is imported: veragmil_suite.utils.rendering is run from its file, as
 # importing it through the package would import robosuite first
-runpy.run_path(str(ROOT / "veragmil_suite" / "rendering.py"))["use_headless_rendering"]()
+runpy.run_path(str(ROOT / "veragmil_suite" / "utils" / "rendering.py"))["use_headless_rendering"]()
 os.environ.setdefault("PYNPUT_BACKEND", "dummy")
 
 
@@ -103,7 +103,7 @@ def main(argv: list[str] | None = None) -> None:
     )
     args = parser.parse_args(argv)
 
-    from veragmil_suite import robomimic_compat
+    from veragmil_suite.learning import robomimic_compat
 
     robomimic_compat.install()
     import torch

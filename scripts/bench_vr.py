@@ -41,9 +41,11 @@ import runpy
 import time
 from pathlib import Path
 
-# OSMesa whatever the display, set before robosuite is imported: veragmil_suite.rendering is run from its file, as
+# OSMesa whatever the display, set before robosuite is imported: veragmil_suite.utils.rendering is run from its file, as
 # importing it through the package would import robosuite first
-runpy.run_path(str(Path(__file__).resolve().parents[1] / "veragmil_suite" / "rendering.py"))["use_headless_rendering"]()
+runpy.run_path(str(Path(__file__).resolve().parents[1] / "veragmil_suite" / "utils" / "rendering.py"))[
+    "use_headless_rendering"
+]()
 os.environ.setdefault("PYNPUT_BACKEND", "dummy")
 
 import numpy as np  # noqa: E402
@@ -51,9 +53,9 @@ import robosuite  # noqa: E402
 
 import veragmil_suite  # noqa: E402, F401  (registers ScoopGranular)
 from veragmil_suite.devices import VRDevice, VRServerOptions, VRStreamOptions  # noqa: E402
-from veragmil_suite.devices.vr_client import HAND, Client, controller, pose_message, ws_url  # noqa: E402
-from veragmil_suite.devices.vr_protocol import unpack_frame  # noqa: E402
-from veragmil_suite.devices.vr_render import Renderer, depth_colormap, encode_jpeg  # noqa: E402
+from veragmil_suite.devices.vr.client import HAND, Client, controller, pose_message, ws_url  # noqa: E402
+from veragmil_suite.devices.vr.protocol import unpack_frame  # noqa: E402
+from veragmil_suite.devices.vr.render import Renderer, depth_colormap, encode_jpeg  # noqa: E402
 
 
 def make(env_name: str, control_freq: int = 20):

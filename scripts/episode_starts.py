@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-runpy.run_path(str(ROOT / "veragmil_suite" / "rendering.py"))["use_headless_rendering"]()
+runpy.run_path(str(ROOT / "veragmil_suite" / "utils" / "rendering.py"))["use_headless_rendering"]()
 os.environ.setdefault("PYNPUT_BACKEND", "dummy")
 
 M_TO_MM = 1000.0
@@ -41,7 +41,7 @@ def start_vector(bowl_pos: np.ndarray, eef_pos: np.ndarray) -> np.ndarray:
 
 
 def training_starts(dataset: str, filter_key: str | None) -> np.ndarray:
-    from veragmil_suite.recording import open_dataset
+    from veragmil_suite.data.recording import open_dataset
 
     with open_dataset(dataset) as f:
         names = [n.decode() for n in f["mask"][filter_key][:]] if filter_key else list(f["data"])
@@ -54,7 +54,7 @@ def episode_start(seed: int) -> np.ndarray:
     import robosuite
 
     import veragmil_suite  # noqa: F401
-    from veragmil_suite.evaluation import EXPERT_KWARGS
+    from veragmil_suite.evaluation.scoring import EXPERT_KWARGS
 
     env = robosuite.make("ScoopGranular", **dict(EXPERT_KWARGS, food=PROBE_FOOD, seed=seed))
     obs = env.reset()
@@ -81,7 +81,7 @@ NO_JOINT_NOISE = {"initialization_noise": {"magnitude": 0.0, "type": "gaussian"}
 
 
 def probe(checkpoint: str, episodes: list[int], foods: list[str], seed: int) -> None:
-    from veragmil_suite.evaluation import AgentSpec, EpisodeTask, run_episode
+    from veragmil_suite.evaluation.scoring import AgentSpec, EpisodeTask, run_episode
 
     spec = AgentSpec("checkpoint", checkpoint)
     print(f"\n{checkpoint}, as drawn and without the arm's initial joint noise:\n")
@@ -98,7 +98,7 @@ def probe(checkpoint: str, episodes: list[int], foods: list[str], seed: int) -> 
 
 
 def main(argv: list[str] | None = None) -> None:
-    from veragmil_suite.foods import FOODS
+    from veragmil_suite.models.foods import FOODS
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("episodes_csv", nargs="+", help="evaluation episodes.csv files (veragmil-evaluate, study)")

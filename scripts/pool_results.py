@@ -22,8 +22,8 @@ from collections import Counter
 from dataclasses import replace
 from pathlib import Path
 
-from veragmil_suite.evaluation import EpisodeRecord, EvaluationResult
-from veragmil_suite.pipeline import write_seed_tables
+from veragmil_suite.evaluation.scoring import EpisodeRecord, EvaluationResult
+from veragmil_suite.study.pipeline import write_seed_tables
 
 # the evaluation settings two results.json must share for their episodes to be comparable
 SHARED_SETTINGS = ("foods", "episodes", "seed", "horizon", "robot", "success_hold_s", "env_kwargs", "versions")

@@ -11,8 +11,8 @@ from veragmil_suite.calibration.benchmark import QUICK_TUBE_SCALE, grain_dims_mm
 from veragmil_suite.calibration.lifting_cylinder import heap_angles, lifting_cylinder
 from veragmil_suite.calibration.slope import slope_travel_m
 from veragmil_suite.calibration.spoonful import dish_volume_m3
-from veragmil_suite.foods import FOODS, PHYSICS, check_physics
 from veragmil_suite.models.dish import DishShape
+from veragmil_suite.models.foods import FOODS, PHYSICS, check_physics
 
 # Heap angle (degrees) the benchmark's quick lifting-cylinder test of a calibrated food must exceed: Table I's grains
 # measure 4-8 degrees there, the calibrated ones 17-23 (results/calibration/quick.txt); the published angles are
@@ -148,8 +148,8 @@ def test_a_spoon_turned_level_in_a_calibrated_pile_throws_no_grain():
     """The scripted scoop up to the end of its level phase, where the spoon squeezes rice against the bowl: with the
     spoon's contact as stiff as the grains' (foods.SPOON_CONTACT_SOLREF) a grain ended 1.08 m away at 3.3 m/s, and
     20-90 left the bowl (a settled pile alone never shows it); now 4 cm and 0.6 m/s."""
-    from veragmil_suite.bench import make_env
-    from veragmil_suite.expert import ScriptedScooper
+    from veragmil_suite.devices.expert import ScriptedScooper
+    from veragmil_suite.scripts.bench import make_env
 
     env = make_env("rice", physics="calibrated")
     obs = env.reset(seed=0)

@@ -367,7 +367,7 @@ def committed_commands() -> list[tuple[str, str, list[str]]]:
     for path in [*sorted(ROOT.glob("results/*/RUN.md")), ROOT / "models" / "checkpoints" / "README.md"]:
         for block in _shell_blocks(path.read_text()):
             for line in block.splitlines():
-                line = line.replace("python -m veragmil_suite.bench", "veragmil-bench")
+                line = line.replace("python -m veragmil_suite.scripts.bench", "veragmil-bench")
                 lexer = shlex.shlex(line, posix=True, punctuation_chars=";|&")
                 lexer.whitespace_split = True
                 lexer.commenters = "#"

@@ -7,8 +7,8 @@ from pathlib import Path
 import pytest
 import robomimic
 
-from veragmil_suite import robomimic_compat, robomimic_obs
-from veragmil_suite.observation_sets import DEFAULT_OBSERVATION_SET, OBSERVATION_SETS
+from veragmil_suite.learning import robomimic_compat, robomimic_obs
+from veragmil_suite.learning.observation_sets import DEFAULT_OBSERVATION_SET, OBSERVATION_SETS
 
 CONFIG_DIR = Path(__file__).resolve().parents[1] / "configs" / "json"
 TEMPLATE_DIR = Path(robomimic.__file__).parent / "exps" / "templates"

@@ -1,4 +1,4 @@
-"""Dataset tools on files recorded by veragmil_suite.recording: info, merge, split, replay, render-obs, and
+"""Dataset tools on files recorded by veragmil_suite.data.recording: info, merge, split, replay, render-obs, and
 robomimic's own get_dataset_info, playback_dataset and dataset_states_to_obs through our entry points."""
 
 import json
@@ -11,7 +11,7 @@ import pytest
 from helpers.programs import run_program
 from helpers.recording import CAMERA_SIZE, record_file, tiny_env_kwargs
 
-from veragmil_suite.recording import open_dataset
+from veragmil_suite.data.recording import open_dataset
 from veragmil_suite.scripts.dataset_tools import (
     info_main,
     merge_main,

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 import robosuite
 
-from veragmil_suite import robomimic_compat, robomimic_obs
-from veragmil_suite.foods import TRAINING_FOODS
-from veragmil_suite.recording import check_schema, demo_names, open_dataset
+from veragmil_suite.data.recording import check_schema, demo_names, open_dataset
+from veragmil_suite.learning import robomimic_compat, robomimic_obs
+from veragmil_suite.models.foods import TRAINING_FOODS
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = ROOT / "demos" / "scoop.hdf5"

@@ -14,7 +14,7 @@ import h5py
 import numpy as np
 import pytest
 
-from veragmil_suite import robomimic_compat
+from veragmil_suite.learning import robomimic_compat
 
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
@@ -62,7 +62,7 @@ def test_importing_veragmil_suite_registers_diffusion_policy_without_importing_t
 import sys
 import veragmil_suite
 assert "torch" not in sys.modules and "robomimic" not in sys.modules
-from veragmil_suite import robomimic_compat
+from veragmil_suite.learning import robomimic_compat
 robomimic_compat.install()
 from robomimic.algo import algo_name_to_factory_func
 from robomimic.config import config_factory
@@ -83,7 +83,7 @@ print(algo_name_to_factory_func("diffusion_policy")(config.algo)[0].__name__, co
 def test_unet_predicts_a_sequence_of_the_samples_shape_from_its_conditioning():
     import torch
 
-    from veragmil_suite.robomimic_algos.conditional_unet1d import ConditionalUnet1D
+    from veragmil_suite.learning.algos.conditional_unet1d import ConditionalUnet1D
 
     torch.manual_seed(0)
     net = ConditionalUnet1D(input_dim=ACTION_DIM, global_cond_dim=10, diffusion_step_embed_dim=16, down_dims=(16, 32))
@@ -179,7 +179,7 @@ def test_run_agent_rolls_the_checkpoint_out_in_a_framestacked_env(trained, tmp_p
 
 
 def test_evaluation_rolls_the_checkpoint_out_one_observation_at_a_time(trained):
-    from veragmil_suite.evaluation import evaluate
+    from veragmil_suite.evaluation.scoring import evaluate
 
     result, checkpoints = trained
     assert result.returncode == 0, result.stderr[-3000:]

@@ -9,16 +9,16 @@ import robosuite
 import robosuite.utils.transform_utils as T
 from helpers.env import grain_positions, make_env, pinned_mujoco_version
 
-from veragmil_suite import settling
-from veragmil_suite.controllers import load_scoop_controller_config
+from veragmil_suite.controllers.scoop_config import load_scoop_controller_config
 from veragmil_suite.environments import scoop as scoop_module
+from veragmil_suite.environments import settling
 from veragmil_suite.environments.scoop import POST_SCOOP_EEF_ROT, PRE_SCOOP_EEF_ROT, SCOOP_STAGES, StageTracker
-from veragmil_suite.foods import FOODS
-from veragmil_suite.kinematics import solve_pose_ik
+from veragmil_suite.learning.robomimic_obs import model_xml
 from veragmil_suite.models.bowl import DEFAULT_BOWL_SHAPE
+from veragmil_suite.models.foods import FOODS
 from veragmil_suite.models.scoop_task import PHYSICS_SOLVER_OPTIONS
 from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
-from veragmil_suite.robomimic_obs import model_xml
+from veragmil_suite.utils.kinematics import solve_pose_ik
 
 ROBOTS = ["XArm7", "Panda", "Sawyer", "UR5e", "IIWA", "Kinova3", "Jaco"]
 OBJECT_KEYS = {"desired_pose": 7, "bowl_pos": 3, "spoon_to_desired_pos": 3, "spoon_load": 2}

@@ -5,7 +5,7 @@ tracks, and its per-step hooks."""
 import numpy as np
 import pytest
 
-from veragmil_suite.episode import SUCCESS_HOLD_S, run_until_done
+from veragmil_suite.environments.episode import SUCCESS_HOLD_S, run_until_done
 
 CONTROL_FREQ = 20  # a hold of 0.1 s is 2 steps
 
@@ -95,7 +95,7 @@ def test_each_action_sees_the_last_observation_and_hooks_run_after_every_step():
 
 
 def test_realtime_waits_out_the_rest_of_each_control_period(monkeypatch):
-    from veragmil_suite import episode
+    from veragmil_suite.environments import episode
 
     waits = []
     monkeypatch.setattr(episode.time, "sleep", waits.append)

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from helpers.recording import make_env, tiny_env_kwargs
 
-from veragmil_suite.controllers import load_scoop_controller_config
-from veragmil_suite.expert import DRIFT_CORRECTION_MAX_S, PROFILES, QUANTIZE_FULL_SCALE, ScriptedScooper
+from veragmil_suite.controllers.scoop_config import load_scoop_controller_config
+from veragmil_suite.devices.expert import DRIFT_CORRECTION_MAX_S, PROFILES, QUANTIZE_FULL_SCALE, ScriptedScooper
 from veragmil_suite.scripts.measure_expert import compare, run_expert_episode
 
 

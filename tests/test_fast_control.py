@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from helpers.env import make_env
 
-from veragmil_suite.fast_control import mass_matrix_block, mass_matrix_index
+from veragmil_suite.controllers.fast_control import mass_matrix_block, mass_matrix_index
 
 
 def _dense(env) -> np.ndarray:

@@ -12,10 +12,10 @@ from helpers.env import grain_positions
 from helpers.env import make_env as make_robosuite_env
 
 import veragmil_suite
-from veragmil_suite.controllers import load_scoop_controller_config
-from veragmil_suite.episode import SUCCESS_HOLD_S
-from veragmil_suite.expert import ScriptedScooper
-from veragmil_suite.recording import DemoWriter, check_schema, demo_names, env_meta, open_dataset, provenance
+from veragmil_suite.controllers.scoop_config import load_scoop_controller_config
+from veragmil_suite.data.recording import DemoWriter, check_schema, demo_names, env_meta, open_dataset, provenance
+from veragmil_suite.devices.expert import ScriptedScooper
+from veragmil_suite.environments.episode import SUCCESS_HOLD_S
 
 # a light scene: a dozen pasta pieces, one pile variant (tests/helpers/recording.py's)
 TINY = dict(food="pasta", n_grains=12, pile_variants=1)
@@ -179,7 +179,7 @@ def test_a_gymnasium_episode_is_recorded_in_our_schema(tmp_path):
 def test_an_action_outside_the_action_space_is_stored_as_the_robot_applied_it(tmp_path):
     """The controller clips its input to the action space; the recorder stores the clipped action it executed,
     so the file holds only valid actions and they replay the recorded states exactly."""
-    from veragmil_suite.datasets import replay_demos
+    from veragmil_suite.data.datasets import replay_demos
 
     env = make(record=True)
     inner = env.unwrapped

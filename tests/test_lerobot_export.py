@@ -31,7 +31,7 @@ pytestmark = [
 def exported(tmp_path_factory):
     root = tmp_path_factory.mktemp("lerobot") / "scoop"
     assert main([str(SAMPLE), "--output-dir", str(root), "--quiet"]) == 0
-    from veragmil_suite import robomimic_compat
+    from veragmil_suite.learning import robomimic_compat
 
     robomimic_compat.install()  # torchvision, which lerobot-dataset imports, beside the CPU torch wheel
     from ledataset.datasets.lerobot_dataset import LeRobotDataset

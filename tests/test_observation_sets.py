@@ -6,8 +6,8 @@ import pytest
 import robosuite
 
 import veragmil_suite  # noqa: F401 - registers ScoopGranular
-from veragmil_suite import robomimic_obs
-from veragmil_suite.observation_sets import (
+from veragmil_suite.learning import robomimic_obs
+from veragmil_suite.learning.observation_sets import (
     OBJECT_OBSERVABLES,
     OBSERVATION_SETS,
     PRIVILEGED_OBSERVATIONS,

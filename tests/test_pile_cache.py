@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from helpers.env import make_env
 
-from veragmil_suite import pile_cache, settling
+from veragmil_suite.environments import pile_cache, settling
 
 N = 5
 

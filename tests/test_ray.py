@@ -18,9 +18,9 @@ import h5py
 import pytest
 from test_pipeline import CHEAP_STUDY
 
-from veragmil_suite import distributed
-from veragmil_suite.distributed import THIS_MACHINE, WorkerLost, ray_session, run_pieces
-from veragmil_suite.settling import PileNotShipped, cache_dir
+from veragmil_suite.environments.settling import PileNotShipped, cache_dir
+from veragmil_suite.utils import distributed
+from veragmil_suite.utils.distributed import THIS_MACHINE, WorkerLost, ray_session, run_pieces
 
 BIN = Path(sys.executable).parent
 # the smallest grid: one demo of pasta, 2 x 5 gradient steps, one episode of each agent on pasta
@@ -121,7 +121,7 @@ def test_ray_workers_take_the_drivers_settled_piles_and_settle_none(ray_address)
         import robosuite
 
         import veragmil_suite  # noqa: F401
-        from veragmil_suite import settling
+        from veragmil_suite.environments import settling
 
         settling.use_shipped_piles(piles)
         try:

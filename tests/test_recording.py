@@ -15,9 +15,7 @@ import pytest
 from helpers.env import pinned_mujoco_version
 from helpers.recording import CAMERA_SIZE, make_env, record_file, synthetic_episode, synthetic_writer, tiny_env_kwargs
 
-from veragmil_suite import robomimic_obs
-from veragmil_suite.evaluation import parse_spec
-from veragmil_suite.recording import (
+from veragmil_suite.data.recording import (
     DatasetError,
     DemoWriter,
     EpisodeRecorder,
@@ -25,6 +23,8 @@ from veragmil_suite.recording import (
     open_dataset,
     provenance,
 )
+from veragmil_suite.evaluation.scoring import parse_spec
+from veragmil_suite.learning import robomimic_obs
 from veragmil_suite.scripts.dataset_tools import info_main, split_main
 
 ROBOT_KEYS = {
@@ -228,7 +228,7 @@ CHILD = textwrap.dedent(
     sys.path.insert(0, {tests!r})
     import numpy as np
     from helpers.recording import make_env, record_file, tiny_env_kwargs
-    from veragmil_suite.recording import EpisodeRecorder
+    from veragmil_suite.data.recording import EpisodeRecorder
 
     record_file({path!r}, episodes=2, steps=5)
     env = make_env(tiny_env_kwargs())

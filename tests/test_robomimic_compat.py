@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from helpers.tiny_dataset import SCOOP_KWARGS, default_controller_config
 
-from veragmil_suite import robomimic_compat
+from veragmil_suite.learning import robomimic_compat
 
 robomimic_compat.install()
 

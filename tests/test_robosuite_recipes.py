@@ -18,13 +18,14 @@ from helpers.env import make_env
 from robosuite.controllers import load_composite_controller_config
 from robosuite.wrappers import DataCollectionWrapper
 
-from veragmil_suite import humanoid, settling
-from veragmil_suite.controllers import (
+from veragmil_suite.controllers.scoop_config import (
     UntunedControllerWarning,
     load_scoop_controller_config,
     untuned_controller_difference,
 )
-from veragmil_suite.foods import FOODS
+from veragmil_suite.environments import settling
+from veragmil_suite.models import humanoid
+from veragmil_suite.models.foods import FOODS
 from veragmil_suite.models.scoop_task import PHYSICS_TIMESTEP_S, check_physics_timestep
 
 ARMS = ["XArm7", "Panda", "Sawyer", "UR5e", "IIWA", "Kinova3", "Jaco"]

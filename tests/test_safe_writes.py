@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 from helpers.recording import synthetic_episode, synthetic_writer
 
-from veragmil_suite import safe_hdf5
-from veragmil_suite.datasets import clean_dataset, dataset_summary
-from veragmil_suite.recording import DatasetError, demo_names, open_dataset
+from veragmil_suite.data import safe_hdf5
+from veragmil_suite.data.datasets import clean_dataset, dataset_summary
+from veragmil_suite.data.recording import DatasetError, demo_names, open_dataset
 from veragmil_suite.scripts import dataset_tools
 
 BIN = Path(sys.executable).parent

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from helpers.env import grain_positions, make_env
 
-from veragmil_suite.expert import ScriptedScooper
+from veragmil_suite.devices.expert import ScriptedScooper
+from veragmil_suite.learning.robomimic_obs import model_xml
 from veragmil_suite.models.scoop_task import GRAIN_SLEEP_TOLERANCE
-from veragmil_suite.robomimic_obs import model_xml
 
 # control steps a settled pile is given to fall asleep (within 10 at GRAIN_SLEEP_TOLERANCE, 40 at 1e-3)
 REST_STEPS = 40
@@ -124,7 +124,7 @@ def test_open_loop_replay_through_sleep_and_wake_is_exact():
 def test_benchmark_reports_how_much_of_an_episode_the_whole_pile_is_awake(capsys):
     """The speed benchmark's expert table: both settings' episodes are counted (successes off/on) and the pile is
     awake for part of the episode only (asleep before the spoon arrives), the share sleeping cannot make cheaper."""
-    from veragmil_suite import bench
+    from veragmil_suite.scripts import bench
 
     bench.main(["--foods", "pasta", "--scales", "1", "--steps", "3", "--episodes", "1"])
     out = capsys.readouterr().out
@@ -140,7 +140,7 @@ def test_benchmark_reports_how_much_of_an_episode_the_whole_pile_is_awake(capsys
 
 
 def test_sleeping_ceiling_counts_only_the_steps_with_the_whole_pile_awake():
-    from veragmil_suite.bench import sleeping_ceiling
+    from veragmil_suite.scripts.bench import sleeping_ceiling
 
     # off: 0.1 s a step; on: 0.05 s a step, half of it in steps with the pile awake (0.025 s a step)
     assert sleeping_ceiling({"rate": 10.0}, {"rate": 20.0, "pile_awake_time": 0.5}) == pytest.approx(4.0)

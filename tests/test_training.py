@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from helpers.tiny_dataset import record_tiny_dataset
 
-from veragmil_suite import robomimic_compat
+from veragmil_suite.learning import robomimic_compat
 
 CONFIG_DIR = Path(__file__).resolve().parents[1] / "configs" / "json"
 BIN = Path(sys.executable).parent

@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 from helpers.vr import make_lift_env, run_loop
 
+from veragmil_suite.data.recording import open_dataset
 from veragmil_suite.devices import VRDevice, VRServerOptions
-from veragmil_suite.recording import open_dataset
 
 BROWSER_DIR = Path(__file__).resolve().parent / "browser"
 CHROMIUM = Path("/usr/bin/chromium")

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from veragmil_suite.devices import vr_frames as F
-from veragmil_suite.devices.vr_clutch import Clutch, Pose
+from veragmil_suite.devices.vr import frames as F
+from veragmil_suite.devices.vr.clutch import Clutch, Pose
 
 DT = 0.05  # 20 Hz control
 EE = Pose(np.array([0.1, 0.0, 1.0]), F.mat_to_quat(np.diag([1.0, -1.0, -1.0])))  # a spoon pointing down

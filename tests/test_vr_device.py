@@ -14,8 +14,8 @@ from helpers.vr import HAND, Client, controller, eef_pose, env_action, lockstep,
 from PIL import Image
 
 from veragmil_suite.devices import VRDevice, VRServerOptions
-from veragmil_suite.devices import vr_frames as F
-from veragmil_suite.devices.vr_server import CLOSE_FINISHED
+from veragmil_suite.devices.vr import frames as F
+from veragmil_suite.devices.vr.server import CLOSE_FINISHED
 
 # real time (staleness, heartbeats, timeouts): make test runs these alone, after the rest (see conftest.py)
 pytestmark = pytest.mark.realtime

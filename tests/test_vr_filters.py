@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from veragmil_suite.devices import vr_frames as F
-from veragmil_suite.devices.vr_filters import (
+from veragmil_suite.devices.vr import frames as F
+from veragmil_suite.devices.vr.filters import (
     OneEuroFilter,
     PoseFilter,
     SlerpFilter,

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from veragmil_suite.devices import vr_frames as F
+from veragmil_suite.devices.vr import frames as F
 
 RNG = np.random.default_rng(0)
 

@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from veragmil_suite.devices.vr_controls import DEFAULT_BINDINGS, Binding, ButtonEvents
-from veragmil_suite.devices.vr_protocol import (
+from veragmil_suite.devices.vr.controls import DEFAULT_BINDINGS, Binding, ButtonEvents
+from veragmil_suite.devices.vr.protocol import (
     MAX_MESSAGE_BYTES,
     PANELS_RGB_DEPTH,
     TIMES,
@@ -168,7 +168,7 @@ def test_timing_block_is_skipped_by_its_length():
 @pytest.mark.skipif(shutil.which("node") is None, reason="node is not installed")
 def test_the_page_parses_both_frame_versions():
     """web/link.js's parseFrame (run by node) reads what pack_frame writes, timing block or not."""
-    web = Path(__file__).resolve().parents[1] / "veragmil_suite" / "devices" / "web"
+    web = Path(__file__).resolve().parents[1] / "veragmil_suite" / "devices" / "vr" / "web"
     frames = [
         pack_frame(b"\xff\xd8jpeg", 42, 3.25, 640, 240, PANELS_RGB_DEPTH),
         stamp_sent(pack_frame(b"\xff\xd8jpeg", 43, 3.5, 640, 240, PANELS_RGB_DEPTH, TIMING), 200.0),

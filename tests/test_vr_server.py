@@ -18,9 +18,9 @@ import aiohttp
 import pytest
 from helpers.vr import Client, controller, pose_message
 
-from veragmil_suite.devices import vr_tls
-from veragmil_suite.devices.vr_protocol import PoseMessage, pack_frame
-from veragmil_suite.devices.vr_server import MAX_WS_FRAME_BYTES, VRServer, VRServerOptions, is_loopback
+from veragmil_suite.devices.vr import tls as vr_tls
+from veragmil_suite.devices.vr.protocol import PoseMessage, pack_frame
+from veragmil_suite.devices.vr.server import MAX_WS_FRAME_BYTES, VRServer, VRServerOptions, is_loopback
 
 # real time (staleness, heartbeats, timeouts): make test runs these alone, after the rest (see conftest.py)
 pytestmark = pytest.mark.realtime
@@ -303,7 +303,7 @@ def test_a_localhost_server_answers_only_to_localhost_names(server):
 SERVER_CHILD = """
 import json, resource, sys
 resource.setrlimit(resource.RLIMIT_NOFILE, (1024, 1024))
-from veragmil_suite.devices.vr_server import VRServer, VRServerOptions
+from veragmil_suite.devices.vr.server import VRServer, VRServerOptions
 server = VRServer(VRServerOptions(port=0, **json.loads(sys.argv[1]))).start()
 print(server.port, flush=True)
 sys.stdin.readline()
@@ -608,5 +608,5 @@ def test_malformed_requests_are_counted_and_summed_up_not_logged_each(server, ca
         assert wait_for(lambda: server.stats()["malformed_http"] == 200)
         server.stop()
     assert not [r for r in caplog.records if r.exc_info]
-    summaries = [r for r in caplog.records if r.name == "veragmil_suite.devices.vr_server"]
+    summaries = [r for r in caplog.records if r.name == "veragmil_suite.devices.vr.server"]
     assert len(summaries) == 1 and "malformed_http 200" in summaries[0].getMessage()

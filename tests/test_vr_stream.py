@@ -6,8 +6,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from veragmil_suite.devices.vr_render import depth_colormap
-from veragmil_suite.devices.vr_stream import POLL_S, frame_decision, step_progress
+from veragmil_suite.devices.vr.render import depth_colormap
+from veragmil_suite.devices.vr.stream import POLL_S, frame_decision, step_progress
 
 INTERVAL = 1 / 30  # 30 fps at most
 IDLE = 1 / 30

@@ -9,9 +9,9 @@ import numpy as np
 import robosuite
 
 import veragmil_suite  # noqa: F401
-from veragmil_suite.controllers import load_scoop_controller_config
-from veragmil_suite.expert import ScriptedScooper
-from veragmil_suite.recording import DemoWriter, EpisodeRecorder, env_meta, provenance
+from veragmil_suite.controllers.scoop_config import load_scoop_controller_config
+from veragmil_suite.data.recording import DemoWriter, EpisodeRecorder, env_meta, provenance
+from veragmil_suite.devices.expert import ScriptedScooper
 
 CAMERA_SIZE = 32
 
@@ -83,7 +83,7 @@ def states_equal(a: np.ndarray, b: np.ndarray) -> bool:
 def synthetic_episode(steps: int = 20, seed: int = 0, **changes):
     """An Episode of the file's form without an env (random values, actions within [-1, 1]): for tests of the
     writer itself, which need many writes fast."""
-    from veragmil_suite.recording import Episode
+    from veragmil_suite.data.recording import Episode
 
     rng = np.random.default_rng(seed)
 

@@ -14,7 +14,7 @@ import json
 import h5py
 import numpy as np
 
-from veragmil_suite import robomimic_compat
+from veragmil_suite.learning import robomimic_compat
 
 SCOOP_KWARGS = dict(robots="XArm7", food="pasta", n_grains=12, pile_variants=1, control_freq=20)
 
@@ -23,7 +23,7 @@ def default_controller_config(env_name: str, robots) -> dict:
     """The composite controller config a recorder stores in env_kwargs (robosuite 1.5's BASIC form)."""
     robot = robots if isinstance(robots, str) else robots[0]
     if env_name == "ScoopGranular":
-        from veragmil_suite.controllers import load_scoop_controller_config
+        from veragmil_suite.controllers.scoop_config import load_scoop_controller_config
 
         return load_scoop_controller_config("OSC_POSE", robot=robot)
     from robosuite.controllers import load_composite_controller_config

@@ -1,12 +1,12 @@
 """Loops and measurements for the VR tests: robosuite's teleoperation loop, in real time or in step with a
-scripted client (``veragmil_suite.devices.vr_client``)."""
+scripted client (``veragmil_suite.devices.vr.client``)."""
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
 
-from veragmil_suite.devices.vr_client import HAND, IDENTITY, Client, controller, pose_message  # noqa: F401
+from veragmil_suite.devices.vr.client import HAND, IDENTITY, Client, controller, pose_message  # noqa: F401
 
 
 def make_lift_env():

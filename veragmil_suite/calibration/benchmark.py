@@ -24,7 +24,7 @@ import numpy as np
 
 from veragmil_suite.calibration.lifting_cylinder import lifting_cylinder
 from veragmil_suite.calibration.spoonful import dish_volume_m3, level_spoonful_g
-from veragmil_suite.foods import FOODS, PHYSICS, FoodSpec, Measured
+from veragmil_suite.models.foods import FOODS, PHYSICS, FoodSpec, Measured
 from veragmil_suite.models.grains import GrainPile
 from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
 
@@ -198,7 +198,7 @@ def main(argv: list[str] | None = None) -> int:
     print(format_table(rows))
     missing = {r["food"]: r["missing_references"] for r in rows if r["missing_references"]}
     for food, keys in missing.items():
-        print(f"no published value for {food}: {', '.join(keys)} (see veragmil_suite/foods.py)")
+        print(f"no published value for {food}: {', '.join(keys)} (see veragmil_suite/models/foods.py)")
     if args.json:
         with open(args.json, "w") as f:
             json.dump({"command": " ".join(sys.argv), "rows": rows}, f, indent=1, default=float)

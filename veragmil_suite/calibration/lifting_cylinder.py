@@ -18,9 +18,9 @@ import mujoco
 import numpy as np
 
 from veragmil_suite.calibration.scene import calibration_scene, run_until_rest
-from veragmil_suite.foods import FoodSpec
 from veragmil_suite.models import contact_groups
 from veragmil_suite.models.dish import DishShape
+from veragmil_suite.models.foods import FoodSpec
 from veragmil_suite.models.grains import GrainPile
 
 LIFT_SPEED_M_S = 0.02

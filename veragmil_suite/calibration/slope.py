@@ -13,7 +13,7 @@ import mujoco
 import numpy as np
 
 from veragmil_suite.calibration.scene import calibration_scene
-from veragmil_suite.foods import FoodSpec
+from veragmil_suite.models.foods import FoodSpec
 from veragmil_suite.models.grains import GrainPile
 
 

@@ -14,9 +14,9 @@ import numpy as np
 from robosuite.utils.mjcf_utils import array_to_string
 
 from veragmil_suite.calibration.scene import calibration_scene, run_until_rest
-from veragmil_suite.foods import SPOON_SURFACE, FoodSpec
 from veragmil_suite.models import contact_groups
 from veragmil_suite.models.dish import DishShape
+from veragmil_suite.models.foods import SPOON_SURFACE, FoodSpec
 from veragmil_suite.models.grains import GrainPile
 from veragmil_suite.models.spoon_gripper import SPOON_SHAPE, spoon_contact
 

@@ -1,8 +1,8 @@
 """Settled piles stay still: many piles per food settled as the task settles them, then watched at rest.
 
-Each pile is a new draw of grain sizes and lattice (seeded), settled by veragmil_suite.settling in its standalone
-model (table, bowl, grains), then run a further ``watch_s`` seconds with sleeping off, which must move no grain
-more than CREEP_LIMIT_M, leave every grain inside the bowl and raise no physics error.
+Each pile is a new draw of grain sizes and lattice (seeded), settled by veragmil_suite.environments.settling in its
+standalone model (table, bowl, grains), then run a further ``watch_s`` seconds with sleeping off, which must move no
+grain more than CREEP_LIMIT_M, leave every grain inside the bowl and raise no physics error.
 
     python -m veragmil_suite.calibration.stability --foods rice --settles 100 \
         --jsonl results/calibration/stability.jsonl
@@ -21,11 +21,11 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from veragmil_suite.foods import FOODS, PHYSICS
+from veragmil_suite.environments.settling import pile_model_xml, simulate_settling
 from veragmil_suite.models.bowl import Bowl
+from veragmil_suite.models.foods import FOODS, PHYSICS
 from veragmil_suite.models.grains import GrainPile
 from veragmil_suite.models.scoop_task import PHYSICS_SOLVER_OPTIONS, PHYSICS_TIMESTEP_S
-from veragmil_suite.settling import pile_model_xml, simulate_settling
 
 CREEP_LIMIT_M = 5e-4  # a grain of a pile at rest moves less than this over the watch
 

@@ -1,5 +1,6 @@
-"""Teleoperation devices: ``VRDevice`` (a Meta Quest or any WebXR headset, through its browser), with the options
-of its server (``VRServerOptions``) and of its camera stream (``VRStreamOptions``).
+"""Operator devices beside robosuite's: the scripted expert and its operator profiles (``expert``), and
+``VRDevice`` (a Meta Quest or any WebXR headset, through its browser), with the options of its server
+(``VRServerOptions``) and of its camera stream (``VRStreamOptions``).
 
 See ``docs/vr.md`` in the repository for setup (USB and Wi-Fi), the controls and the message schema.
 """
@@ -16,7 +17,7 @@ __all__ = ["VRDevice", "VRServerOptions", "VRStreamOptions"]
 
 # the module of each name, imported on first use: the filters, frames and protocol modules stay usable without
 # robosuite loaded
-_MODULES = {"VRDevice": "vr", "VRServerOptions": "vr_server", "VRStreamOptions": "vr_stream"}
+_MODULES = {"VRDevice": "vr.device", "VRServerOptions": "vr.server", "VRStreamOptions": "vr.stream"}
 
 
 def __getattr__(name):

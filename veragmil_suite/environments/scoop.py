@@ -13,20 +13,26 @@ from robosuite.environments.manipulation.manipulation_env import ManipulationEnv
 from robosuite.utils.mjcf_utils import array_to_string, find_elements, new_element
 from robosuite.utils.observables import Observable, sensor
 
-from veragmil_suite.controllers import (
+from veragmil_suite.controllers.fast_control import use_block_mass_matrix
+from veragmil_suite.controllers.scoop_config import (
     UntunedControllerWarning,
     leave_heading_free,
     load_scoop_controller_config,
     untuned_controller_difference,
 )
-from veragmil_suite.fast_control import use_block_mass_matrix
-from veragmil_suite.foods import DEFAULT_PHYSICS, FOODS, PHYSICS, FoodSpec, GrainModel, check_physics, get_food
-from veragmil_suite.humanoid import SPOON_ARM, HumanoidLayout, check_robot, humanoid_layout, self_contact_excludes
-from veragmil_suite.kinematics import solve_pose_ik
+from veragmil_suite.environments.settling import SettledPile, pile_key, settle
 from veragmil_suite.models.arena import ScoopArena
 from veragmil_suite.models.bowl import DEFAULT_BOWL_SHAPE, Bowl
 from veragmil_suite.models.dish import DishShape
+from veragmil_suite.models.foods import DEFAULT_PHYSICS, FOODS, PHYSICS, FoodSpec, GrainModel, check_physics, get_food
 from veragmil_suite.models.grains import GrainPile
+from veragmil_suite.models.humanoid import (
+    SPOON_ARM,
+    HumanoidLayout,
+    check_robot,
+    humanoid_layout,
+    self_contact_excludes,
+)
 from veragmil_suite.models.scoop_task import (
     GRAIN_SLEEP_TOLERANCE,
     PHYSICS_SOLVER_OPTIONS,
@@ -36,11 +42,12 @@ from veragmil_suite.models.scoop_task import (
     check_sleep_tolerance,
 )
 from veragmil_suite.models.spoon_gripper import SPOON_SHAPE, spoon_contact
-from veragmil_suite.settling import SettledPile, pile_key, settle
-from veragmil_suite.sim_xml import keep_sim_xml
+from veragmil_suite.utils.kinematics import solve_pose_ik
+from veragmil_suite.utils.sim_xml import keep_sim_xml
 
 M3_PER_CM3 = 1e-6
-# the largest grain count accepted, as a multiple of the food's default (veragmil_suite.bench times 1x, 2x and 4x)
+# the largest grain count accepted, as a multiple of the food's default (veragmil_suite.scripts.bench times 1x, 2x and
+# 4x)
 MAX_GRAINS_PER_DEFAULT = 4
 # pile variants tried when a loaded model's pile is identified (beyond the environment's own pile_variants)
 LOADED_PILE_VARIANTS_TRIED = 64
@@ -68,23 +75,23 @@ class ScoopGranular(ManipulationEnv):
     Args:
         robots (str or list of str): Specification for specific robot arm to be instantiated within this env
             (e.g: "XArm7"). Note: Must be a single single-arm robot, or the Unitree G1 ("G1FixedLowerBody",
-            "G1ArmsOnly", with robosuite-models), which the task places at the table (veragmil_suite.humanoid): it
-            scoops with its right hand, and its left arm and torso hold still. Default: XArm7.
+            "G1ArmsOnly", with robosuite-models), which the task places at the table (veragmil_suite.models.humanoid):
+            it scoops with its right hand, and its left arm and torso hold still. Default: XArm7.
         env_configuration (str): Specifies how to position the robots within the environment (default is "default").
         controller_configs (str or dict): composite controller config. None gives OSC_POSE (see
-            veragmil_suite.controllers.load_scoop_controller_config, which also offers robosuite's IK_POSE); any
-            other config (robosuite's own defaults among them) is warned about once, naming what differs
+            veragmil_suite.controllers.scoop_config.load_scoop_controller_config, which also offers robosuite's
+            IK_POSE); any other config (robosuite's own defaults among them) is warned about once, naming what differs
             (UntunedControllerWarning).
         gripper_types (str): end-effector; default "SpoonGripper" (a two-armed robot holds it in its right hand and
             nothing in its left)
         base_types (str): robot base type; "default" uses the robot's own
         initialization_noise (dict or "default"): joint noise of the initial (pre-scoop) configuration
-        food (str or FoodSpec): a catalog food name (veragmil_suite.foods.FOODS) or a custom FoodSpec
+        food (str or FoodSpec): a catalog food name (veragmil_suite.models.foods.FOODS) or a custom FoodSpec
         physics (str): "calibrated" (default: grains calibrated against measurements of the real foods) or "table1"
-            (the paper's Table I parameters, as every result before calibration); veragmil_suite.foods.PHYSICS
+            (the paper's Table I parameters, as every result before calibration); veragmil_suite.models.foods.PHYSICS
         n_grains (None or int): grains in the bowl; None uses the food's default (a scoopable real-time scene)
         pile_variants (int): distinct piles (grain sizes and arrangement) drawn from per reset; each is settled
-            once per machine and cached (veragmil_suite.settling)
+            once per machine and cached (veragmil_suite.environments.settling)
         bowl_shape (DishShape): dimensions of the bowl
         bowl_x_range (2-tuple): bowl position range along x (m, relative to its nominal place)
         bowl_y_range (2-tuple): bowl position range along y (m, relative to its nominal place)
@@ -236,7 +243,7 @@ class ScoopGranular(ManipulationEnv):
         self.table_offset = np.array((0, 0, 0.8))
         self.bowl_nominal_xy = np.zeros(2)
         if self.humanoid is not None:
-            # a humanoid stands at the table's edge and reaches a bowl near it (veragmil_suite.humanoid)
+            # a humanoid stands at the table's edge and reaches a bowl near it (veragmil_suite.models.humanoid)
             self.bowl_nominal_xy = np.array([-table_full_size[0] / 2 + self.humanoid.bowl_from_table_edge_m, 0.0])
 
         # reward configuration
@@ -379,8 +386,8 @@ class ScoopGranular(ManipulationEnv):
         mujoco_arena.set_origin([0, 0, 0])
 
         self.bowl = Bowl(name="bowl", shape=self.bowl_shape)
-        # One of a few piles per food: each is settled once per machine (veragmil_suite.settling), and the same
-        # seed always draws the same one, so the same seed gives the same XML.
+        # One of a few piles per food: each is settled once per machine (veragmil_suite.environments.settling), and the
+        # same seed always draws the same one, so the same seed gives the same XML.
         self.food, self.n_grains, self.physics = self._env_food, self._env_n_grains, self._env_physics
         self.grain = self.food.grain(self.physics)
         self.pile_variant = int(self.rng.integers(self.pile_variants))
@@ -419,7 +426,7 @@ class ScoopGranular(ManipulationEnv):
     def settled_piles(self) -> dict[str, SettledPile]:
         """
         Every pile variant this environment can draw, settled here (or read from this machine's cache), by cache
-        key: what a worker elsewhere is handed (veragmil_suite.settling.use_shipped_piles) to reset this
+        key: what a worker elsewhere is handed (veragmil_suite.environments.settling.use_shipped_piles) to reset this
         environment on the same piles, for any seed.
         """
         timestep = float(self.sim.model.opt.timestep)
@@ -438,7 +445,7 @@ class ScoopGranular(ManipulationEnv):
         reset_from_xml_string (robosuite's playback, robomimic's reset_to, a merged dataset of several foods) may
         load a recorded XML of another food, grain count or pile variant than the one drawn last: the metrics and
         observations must use that pile's grain sizes and volumes. The pile is found among the environment's own
-        food's and the catalog's (veragmil_suite.foods.FOODS) piles of the grain colour and count loaded.
+        food's and the catalog's (veragmil_suite.models.foods.FOODS) piles of the grain colour and count loaded.
         """
         model = self.sim.model
         pattern = re.compile(rf"{re.escape(self.grain_pile.name)}(\d+)")
@@ -473,7 +480,8 @@ class ScoopGranular(ManipulationEnv):
                         return
         raise ValueError(
             f"the loaded model's {n_loaded} grains are none of the first {tried} piles of {n_loaded} grains of any "
-            f"known food ({', '.join(f.name for f in foods)}): register its food (veragmil_suite.foods.register_food) "
+            f"known food ({', '.join(f.name for f in foods)}): register its food "
+            "(veragmil_suite.models.foods.register_food) "
             "or make the environment with it"
         )
 

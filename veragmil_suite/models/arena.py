@@ -7,8 +7,8 @@ import robosuite.utils.transform_utils as T
 from robosuite.models.arenas import TableArena
 from robosuite.utils.mjcf_utils import array_to_string, new_element
 
-from veragmil_suite.foods import TABLE_SURFACE
 from veragmil_suite.models import contact_groups
+from veragmil_suite.models.foods import TABLE_SURFACE
 
 # The overhead camera looks down at the bowl from above its far side (away from the robot), 55 degrees below the
 # horizon: straight down from above the bowl, the arm's wrist filled half the frame at the pre-scoop pose.

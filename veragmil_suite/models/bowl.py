@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 from robosuite.models.objects import CompositeObject
 
-from veragmil_suite.foods import BOWL_FOOT_SURFACE, BOWL_SURFACE
 from veragmil_suite.models import contact_groups
 from veragmil_suite.models.dish import DishShape
+from veragmil_suite.models.foods import BOWL_FOOT_SURFACE, BOWL_SURFACE
 
 # Default bowl: 11 cm across at the rim, 4 cm deep, walls sloped at 45 degrees down to a 3 cm floor, so a few
 # hundred grains gather into a heap a spoon can dig into (a flat 6 cm floor spread 200 rice grains one layer

@@ -8,9 +8,9 @@ import mujoco
 import numpy as np
 from robosuite.utils.mjcf_utils import array_to_string, new_body, new_geom
 
-from veragmil_suite.foods import DEFAULT_PHYSICS, GRAIN_SOLIMP, FoodSpec
 from veragmil_suite.models import contact_groups
 from veragmil_suite.models.dish import DishShape
+from veragmil_suite.models.foods import DEFAULT_PHYSICS, GRAIN_SOLIMP, FoodSpec
 
 # Lower bound of a grain's principal inertia, as a fraction of mass * (size/2)^2 (a solid sphere is 0.4).
 GRAIN_MIN_INERTIA_FACTOR = 0.4
@@ -22,14 +22,14 @@ GRAIN_SPIN_DECAY_PER_S = 20.0
 class GrainPile:
     """
     N grains of one food, each a free body, first placed on a jittered lattice inside the bowl without overlap
-    (they settle into a pile afterwards: see veragmil_suite.settling).
+    (they settle into a pile afterwards: see veragmil_suite.environments.settling).
 
     Args:
         food (FoodSpec): the food
         n_grains (int): how many grains
         rng (np.random.Generator): draws every grain's size and starting pose; the same seed gives the same XML
         name (str): prefix of the bodies, joints and geoms
-        physics (str): which of the food's grain models ("calibrated" or "table1", veragmil_suite.foods.PHYSICS)
+        physics (str): which of the food's grain models ("calibrated" or "table1", veragmil_suite.models.foods.PHYSICS)
     """
 
     def __init__(

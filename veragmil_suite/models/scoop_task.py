@@ -7,7 +7,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 from robosuite.models.tasks import ManipulationTask
 
-from veragmil_suite.foods import CONTACT_TIMECONST_S
+from veragmil_suite.models.foods import CONTACT_TIMECONST_S
 from veragmil_suite.models.grains import GrainPile
 
 # MuJoCo's default Newton solver is unusable for piles (600 peas: 2.6 s per step). Conjugate gradient with an
@@ -26,8 +26,8 @@ _TABLE1_SOLVER_OPTIONS = {
     # forces and rice leaked through the bowl's floor (4 of 200 grains within 0.25 s).
     "impratio": "1",
 }
-# Solver settings by physics (veragmil_suite.foods.PHYSICS). Calibrated: soft friction (impratio 1) lets grains creep
-# down a heap below their friction angle (rice heaped at 9 degrees); 10 heaps rice as 100 does (22-26 degrees).
+# Solver settings by physics (veragmil_suite.models.foods.PHYSICS). Calibrated: soft friction (impratio 1) lets grains
+# creep down a heap below their friction angle (rice heaped at 9 degrees); 10 heaps rice as 100 does (22-26 degrees).
 # Stiffer friction needs more iterations to converge: impratio 3 or 10 on 30 threw grains out of the workspace.
 PHYSICS_SOLVER_OPTIONS = {
     "table1": _TABLE1_SOLVER_OPTIONS,

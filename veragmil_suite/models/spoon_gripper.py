@@ -8,10 +8,10 @@ from robosuite.models.grippers.gripper_model import GripperModel
 from robosuite.utils.mjcf_utils import array_to_string, find_elements, new_geom
 from robosuite.utils.transform_utils import convert_quat, mat2quat
 
-from veragmil_suite.asset_paths import asset_path
-from veragmil_suite.foods import SPOON_CONTACT_SOLREF, SPOON_SURFACE
 from veragmil_suite.models import contact_groups
 from veragmil_suite.models.dish import DishShape
+from veragmil_suite.models.foods import SPOON_CONTACT_SOLREF, SPOON_SURFACE
+from veragmil_suite.utils.asset_paths import asset_path
 
 # A feeding spoon: bowl 4.6 cm x 3.0 cm at the rim, 1 cm deep.
 SPOON_SHAPE = DishShape(

@@ -41,9 +41,9 @@ class UsageError(Exception):
 
 # errors the handler reports in one line, by class name (importing their modules here would import h5py or Ray)
 EXPECTED_ERRORS = (
-    "veragmil_suite.recording.DatasetError",
-    "veragmil_suite.distributed.RayMissing",
-    "veragmil_suite.lerobot_export.ExtraNotInstalled",
+    "veragmil_suite.data.recording.DatasetError",
+    "veragmil_suite.utils.distributed.RayMissing",
+    "veragmil_suite.data.lerobot_export.ExtraNotInstalled",
 )
 # OSErrors about the user's files, folders, disk or addresses, not about our code
 USER_ERRNOS = {
@@ -282,37 +282,37 @@ control_freq = ControlFreq()
 
 
 def _foods() -> list[str]:
-    from veragmil_suite.foods import FOODS, TRAINING_FOODS, UNSEEN_FOODS
+    from veragmil_suite.models.foods import FOODS, TRAINING_FOODS, UNSEEN_FOODS
 
     return list(dict.fromkeys([*TRAINING_FOODS, *UNSEEN_FOODS, *FOODS]))
 
 
 def _profiles() -> list[str]:
-    from veragmil_suite.expert import PROFILES
+    from veragmil_suite.devices.expert import PROFILES
 
     return sorted(PROFILES)
 
 
 def _algos() -> list[str]:
-    from veragmil_suite.pipeline import ALGO_CONFIGS
+    from veragmil_suite.study.pipeline import ALGO_CONFIGS
 
     return sorted(ALGO_CONFIGS)
 
 
 def _observation_sets() -> list[str]:
-    from veragmil_suite.observation_sets import OBSERVATION_SETS
+    from veragmil_suite.learning.observation_sets import OBSERVATION_SETS
 
     return sorted(OBSERVATION_SETS)
 
 
 def _physics() -> list[str]:
-    from veragmil_suite.foods import PHYSICS
+    from veragmil_suite.models.foods import PHYSICS
 
     return list(PHYSICS)
 
 
 def _robomimic_algos() -> list[str]:
-    from veragmil_suite import robomimic_compat
+    from veragmil_suite.learning import robomimic_compat
 
     robomimic_compat.install()  # robomimic imports torchvision and mujoco_py, which the compatibility layer bridges
     from robomimic.config.base_config import REGISTERED_CONFIGS
@@ -330,12 +330,12 @@ environment = Choice("environment", ["ScoopGranular"])
 
 
 class Robot(Kind):
-    """A robosuite robot that can carry the spoon (veragmil_suite.humanoid.check_robot)."""
+    """A robosuite robot that can carry the spoon (veragmil_suite.models.humanoid.check_robot)."""
 
     accepted = "a robosuite robot that can hold the spoon (XArm7, Panda, ..., G1FixedLowerBody)"
 
     def __call__(self, text: str) -> str:
-        from veragmil_suite.humanoid import check_robot
+        from veragmil_suite.models.humanoid import check_robot
 
         try:
             check_robot(text)
@@ -370,7 +370,7 @@ class Controller(Kind):
     def __call__(self, text: str) -> str:
         from robosuite.controllers import ALL_COMPOSITE_CONTROLLERS
 
-        from veragmil_suite.controllers import ARM_CONTROLLERS
+        from veragmil_suite.controllers.scoop_config import ARM_CONTROLLERS
 
         if text == "OSC_POSE" or text in ALL_COMPOSITE_CONTROLLERS:
             return text
@@ -582,7 +582,7 @@ CHECKPOINT_KEYS = ("algo_name", "config", "env_metadata", "shape_metadata", "mod
 
 def _checkpoint(path: str) -> None:
     """A robomimic checkpoint: what robomimic's loader reads as a dict with the keys its tools use."""
-    from veragmil_suite import robomimic_compat
+    from veragmil_suite.learning import robomimic_compat
 
     robomimic_compat.install()
     from robomimic.utils.file_utils import load_dict_from_checkpoint
@@ -599,7 +599,7 @@ def _checkpoint(path: str) -> None:
 
 
 json_file = InputFile("JSON file", check=_json_value)
-# our datasets' content is checked where they are opened (veragmil_suite.recording.open_dataset: one DatasetError
+# our datasets' content is checked where they are opened (veragmil_suite.data.recording.open_dataset: one DatasetError
 # line naming what is wrong), which also knows what an interrupted write left
 dataset = InputFile("dataset file")
 robomimic_dataset = InputFile("robomimic dataset (HDF5)", check=_robomimic_hdf5)
@@ -737,7 +737,7 @@ def _check_env_value(name: str, value: Any, kwargs: dict, default: Any) -> None:
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise count.refuse(value)
         from veragmil_suite.environments.scoop import MAX_GRAINS_PER_DEFAULT
-        from veragmil_suite.foods import DEFAULT_PHYSICS, FOODS, PHYSICS
+        from veragmil_suite.models.foods import DEFAULT_PHYSICS, FOODS, PHYSICS
 
         # the food's own limit, or without a food the largest (each food's is checked where it is known)
         foods = [FOODS[kwargs["food"]]] if kwargs.get("food") in FOODS else list(FOODS.values())
@@ -790,16 +790,17 @@ def _check_env_value(name: str, value: Any, kwargs: dict, default: Any) -> None:
 
 
 class Agent(Kind):
-    """An evaluated agent, ``[NAME=]SPEC`` (veragmil_suite.evaluation.parse_agent_argument), a checkpoint read now."""
+    """An evaluated agent, ``[NAME=]SPEC`` (veragmil_suite.evaluation.scoring.parse_agent_argument), a checkpoint
+    read now."""
 
     @property
     def accepted(self) -> str:
-        from veragmil_suite.evaluation import SPEC_HELP
+        from veragmil_suite.evaluation.scoring import SPEC_HELP
 
         return f"[NAME=]SPEC with SPEC {SPEC_HELP}"
 
     def __call__(self, text: str) -> str:
-        from veragmil_suite.evaluation import parse_agent_argument, parse_spec
+        from veragmil_suite.evaluation.scoring import parse_agent_argument, parse_spec
 
         try:
             _, spec = parse_agent_argument(text)

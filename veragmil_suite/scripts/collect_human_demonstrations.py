@@ -5,10 +5,9 @@ A superset of robosuite's robosuite/scripts/collect_human_demonstrations.py: its
 --config, --arm, --camera, --controller, --device, --pos-sensitivity, --rot-sensitivity, --renderer, --max_fr,
 --reverse_xy, --goal_update_mode, --directory) mean what they mean there, and its devices (keyboard, spacemouse,
 dualsense, mjgui: robosuite's own device classes) are chosen with --device as there; ours add ``vr`` (a WebXR
-headset, veragmil_suite.devices.VRDevice) and ``scripted`` (the scripted expert, veragmil_suite.expert: no human,
-no display, no prompt). Run it as ``veragmil-collect``, as
-``python -m veragmil_suite.scripts.collect_human_demonstrations`` or by its path, as robosuite's is run: the same
-program each way.
+headset, veragmil_suite.devices.VRDevice) and ``scripted`` (the scripted expert, veragmil_suite.devices.expert: no
+human, no display, no prompt). Run it as ``veragmil-collect``, as ``python -m
+veragmil_suite.scripts.collect_human_demonstrations`` or by its path, as robosuite's is run: the same program each way.
 
 After each episode its metrics (success, spilled pieces and volume, completion time) are printed and stored, and
 the operator keeps or discards it; discarded attempts are still logged, so a human operator's success rate counts
@@ -41,10 +40,10 @@ import time
 
 import numpy as np
 
-from veragmil_suite.distributed import add_ray_argument, check_ray_argument
-from veragmil_suite.episode import SUCCESS_HOLD_S, run_until_done
+from veragmil_suite.environments.episode import SUCCESS_HOLD_S, run_until_done
 from veragmil_suite.scripts import cli
 from veragmil_suite.scripts.cli import Parser, UsageError, command
+from veragmil_suite.utils.distributed import add_ray_argument, check_ray_argument
 
 # robosuite's devices (its collect_human_demonstrations.py), then ours
 ROBOSUITE_DEVICES = ("keyboard", "spacemouse", "dualsense", "mjgui")
@@ -56,8 +55,8 @@ ENV_CONFIGURATIONS = ("default",)
 
 def build_parser() -> Parser:
     """robosuite's collect_human_demonstrations.py options, with their meaning there, and ours."""
-    from veragmil_suite.expert import PROFILES
-    from veragmil_suite.humanoid import SPOON_ARM
+    from veragmil_suite.devices.expert import PROFILES
+    from veragmil_suite.models.humanoid import SPOON_ARM
 
     p = Parser(
         "veragmil-collect",
@@ -206,7 +205,7 @@ def build_parser() -> Parser:
 
 def check_args(args: argparse.Namespace) -> None:
     """What no single option's kind can tell: how they combine. UsageError names the conflict."""
-    from veragmil_suite.humanoid import SPOON_ARM
+    from veragmil_suite.models.humanoid import SPOON_ARM
 
     if (args.output is None) == (args.directory is None):
         raise UsageError("give --output FILE (appended to when it exists) or --directory DIR (robosuite's), one")
@@ -269,7 +268,7 @@ def controller_config(value: str, robot: str, absolute: bool = False) -> dict:
 
     from robosuite.controllers import ALL_COMPOSITE_CONTROLLERS, load_composite_controller_config
 
-    from veragmil_suite.controllers import load_scoop_controller_config
+    from veragmil_suite.controllers.scoop_config import load_scoop_controller_config
 
     if value == "OSC_POSE":
         config = load_scoop_controller_config("OSC_POSE", robot=robot)
@@ -299,7 +298,7 @@ class ScriptedOperator:
     source = "scripted"
 
     def __init__(self, env, profile: str, seed: int):
-        from veragmil_suite.expert import ScriptedScooper
+        from veragmil_suite.devices.expert import ScriptedScooper
 
         self.expert = ScriptedScooper(env, profile, seed=seed)
         self.name = f"scripted-{self.expert.profile.name}"
@@ -472,8 +471,8 @@ def run_episode(
     pace: FrameCap | None = None,
 ) -> str:
     """Record one episode (env and operator seeded with ``seed``) through the shared episode loop
-    (veragmil_suite.episode); returns why it ended: "success", "horizon", "operator" (a human stopped), "gave up"
-    (the scripted operator did) or "physics". A ``success_hold_s`` <= 0 leaves success out of the ending rule.
+    (veragmil_suite.environments.episode); returns why it ended: "success", "horizon", "operator" (a human stopped),
+    "gave up" (the scripted operator did) or "physics". A ``success_hold_s`` <= 0 leaves success out of the ending rule.
     ``pace`` caps the steps per second (--max-fr)."""
     obs = recorder.reset(seed=seed)
     operator.begin(seed=seed)
@@ -526,7 +525,8 @@ def _worker_attempt(context: tuple, seed: int):
     import robosuite
 
     import veragmil_suite  # noqa: F401
-    from veragmil_suite import recording, settling
+    from veragmil_suite.data import recording
+    from veragmil_suite.environments import settling
 
     args, env_kwargs, piles = context
     settling.use_shipped_piles(piles)
@@ -546,7 +546,7 @@ def parallel_attempts(args, env_kwargs: dict, piles: dict | None = None):
     ``piles``, yielded in seed order like local_attempts (a few attempts run ahead; those not needed are cancelled
     or dropped when the caller stops).
     """
-    from veragmil_suite.distributed import ray_session, run_pieces
+    from veragmil_suite.utils.distributed import ray_session, run_pieces
 
     with ray_session(args.ray) as address:
         on_ray = address is not None
@@ -594,14 +594,14 @@ def main(args: argparse.Namespace) -> int:
     if not os.environ.get("DISPLAY"):
         os.environ.setdefault("PYNPUT_BACKEND", "dummy")  # robosuite.devices imports pynput, which wants X
     if args.camera_names:
-        from veragmil_suite.rendering import use_headless_rendering
+        from veragmil_suite.utils.rendering import use_headless_rendering
 
         use_headless_rendering()
 
     import robosuite
 
     import veragmil_suite  # noqa: F401  (registers ScoopGranular)
-    from veragmil_suite import recording
+    from veragmil_suite.data import recording
 
     has_display = bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
     render = args.render == "on" or (args.render == "auto" and args.device != "scripted" and has_display)

@@ -1,6 +1,6 @@
 """
-Console programs for ScoopGranular demonstration files (robomimic's HDF5 schema, see veragmil_suite.recording):
-argument parsing, printing and exit codes around veragmil_suite.datasets.
+Console programs for ScoopGranular demonstration files (robomimic's HDF5 schema, see veragmil_suite.data.recording):
+argument parsing, printing and exit codes around veragmil_suite.data.datasets.
 
     veragmil-dataset-info   demos, lengths, per-food counts, success rate, spillage, obs keys and shapes
     veragmil-merge          merge several files into one (demos renumbered, provenance kept per demo)
@@ -15,7 +15,7 @@ import argparse
 import json
 from pathlib import Path
 
-from veragmil_suite.datasets import (
+from veragmil_suite.data.datasets import (
     clean_dataset,
     dataset_summary,
     merge_datasets,
@@ -23,9 +23,9 @@ from veragmil_suite.datasets import (
     replay_demos,
     split_dataset,
 )
-from veragmil_suite.rendering import use_headless_rendering
 from veragmil_suite.scripts import cli
 from veragmil_suite.scripts.cli import Parser, UsageError, command
+from veragmil_suite.utils.rendering import use_headless_rendering
 
 # ---------------------------------------------------------------------------------------------------------------- #
 # info                                                                                                             #

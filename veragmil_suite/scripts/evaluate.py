@@ -16,10 +16,10 @@ from __future__ import annotations
 import argparse
 import sys
 
-from veragmil_suite.distributed import add_ray_argument, check_ray_argument
-from veragmil_suite.evaluation import ALL_FOODS, DEFAULT_VIDEO_CAMERA, SPEC_HELP, evaluate, parse_agent_argument
+from veragmil_suite.evaluation.scoring import ALL_FOODS, DEFAULT_VIDEO_CAMERA, SPEC_HELP, evaluate, parse_agent_argument
 from veragmil_suite.scripts import cli
 from veragmil_suite.scripts.cli import Parser, UsageError, command
+from veragmil_suite.utils.distributed import add_ray_argument, check_ray_argument
 
 # ScoopGranular arguments this program sets from its own options
 RESERVED_ENV_KWARGS = {"food": "--foods", "seed": "--seed", "horizon": "--horizon", "robots": "--robots"}

@@ -5,7 +5,7 @@ for LeRobot's training scripts; written by the lerobot-dataset package (pip inst
     veragmil-export-lerobot demos/scoop.hdf5 --output-dir lerobot/scoop
     veragmil-export-lerobot demos/scoop.hdf5 --output-dir lerobot/scoop_rice --filter-key rice --repo-id me/scoop_rice
 
-What goes where: veragmil_suite.lerobot_export.
+What goes where: veragmil_suite.data.lerobot_export.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from veragmil_suite.lerobot_export import VIDEO_CODECS, export_lerobot
+from veragmil_suite.data.lerobot_export import VIDEO_CODECS, export_lerobot
 from veragmil_suite.scripts import cli
 from veragmil_suite.scripts.cli import Parser, command
 

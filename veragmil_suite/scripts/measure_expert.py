@@ -24,8 +24,8 @@ import time
 
 import numpy as np
 
-from veragmil_suite.episode import SUCCESS_HOLD_S, run_until_done
-from veragmil_suite.rendering import use_headless_rendering
+from veragmil_suite.environments.episode import SUCCESS_HOLD_S, run_until_done
+from veragmil_suite.utils.rendering import use_headless_rendering
 
 
 def run_expert_episode(
@@ -41,8 +41,8 @@ def run_expert_episode(
     import robosuite
 
     import veragmil_suite  # noqa: F401
-    from veragmil_suite.expert import ScriptedScooper
-    from veragmil_suite.recording import EpisodeRecorder, episode_metrics
+    from veragmil_suite.data.recording import EpisodeRecorder, episode_metrics
+    from veragmil_suite.devices.expert import ScriptedScooper
 
     kwargs = dict(
         robots=robot, food=food, has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False, seed=seed
@@ -77,7 +77,7 @@ def run_expert_episode(
 
 
 def _episode_piece(context: tuple[str, str, dict], piece: tuple[str, int]) -> dict:
-    """run_expert_episode as a piece of veragmil_suite.distributed: (food, seed) of context's (profile, robot,
+    """run_expert_episode as a piece of veragmil_suite.utils.distributed: (food, seed) of context's (profile, robot,
     env_kwargs)."""
     profile, robot, env_kwargs = context
     food, seed = piece
@@ -210,8 +210,8 @@ def compare(paths: list[str]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from veragmil_suite.expert import PROFILES
-    from veragmil_suite.foods import FOODS, TRAINING_FOODS
+    from veragmil_suite.devices.expert import PROFILES
+    from veragmil_suite.models.foods import FOODS, TRAINING_FOODS
     from veragmil_suite.models.scoop_task import GRAIN_SLEEP_TOLERANCE, PHYSICS_TIMESTEP_S, check_physics_timestep
 
     p = argparse.ArgumentParser(prog="python -m veragmil_suite.scripts.measure_expert", description=__doc__)
@@ -219,7 +219,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--episodes", type=int, default=10, help="episodes per food (seeds first-seed...)")
     p.add_argument("--first-seed", type=int, default=0)
     p.add_argument("--profile", choices=sorted(PROFILES), default="expert")
-    p.add_argument("--robot", default="XArm7", help="robosuite robot (G1FixedLowerBody: see veragmil_suite.humanoid)")
+    p.add_argument(
+        "--robot", default="XArm7", help="robosuite robot (G1FixedLowerBody: see veragmil_suite.models.humanoid)"
+    )
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     p.add_argument(
         "--sleep-tolerance",
@@ -260,7 +262,7 @@ def main(argv: list[str] | None = None) -> int:
         check_physics_timestep(args.physics_timestep, control_freq)
     except ValueError as e:
         p.error(f"--physics-timestep: {e}")
-    from veragmil_suite.distributed import run_pieces
+    from veragmil_suite.utils.distributed import run_pieces
 
     jobs = [(f, s) for s in range(args.first_seed, args.first_seed + args.episodes) for f in args.foods]
     results = []

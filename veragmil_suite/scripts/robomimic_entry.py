@@ -2,12 +2,12 @@
 Console entry points that run robomimic's own scripts (train, run_trained_agent, get_dataset_info,
 playback_dataset, dataset_states_to_obs) on our environment, with their own command lines.
 
-Each one installs the compatibility layer (veragmil_suite.robomimic_compat), which also registers ScoopGranular,
-parses its command line with the script's own parser (robomimic's option names; dashed spellings accepted too),
-each option given a kind of value (veragmil_suite.scripts.cli) so that a bad value, a missing or foreign file is
-one line and exit 2 before anything runs, then runs the script's ``if __name__ == "__main__":`` block in the
-script's own module on those arguments. A failed run exits non-zero (robomimic's train.py catches its errors and
-would exit 0) and nothing ever waits on a prompt.
+Each one installs the compatibility layer (veragmil_suite.learning.robomimic_compat), which also registers
+ScoopGranular, parses its command line with the script's own parser (robomimic's option names; dashed spellings accepted
+too), each option given a kind of value (veragmil_suite.scripts.cli) so that a bad value, a missing or foreign file is
+one line and exit 2 before anything runs, then runs the script's ``if __name__ == "__main__":`` block in the script's
+own module on those arguments. A failed run exits non-zero (robomimic's train.py catches its errors and would exit 0)
+and nothing ever waits on a prompt.
 
     veragmil-train --config configs/json/bc.json --dataset demos/scoop.hdf5
     python -m veragmil_suite.scripts.robomimic_entry train --config ...   (same, without the console script)
@@ -22,7 +22,7 @@ import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from veragmil_suite import robomimic_compat
+from veragmil_suite.learning import robomimic_compat
 from veragmil_suite.scripts import cli
 from veragmil_suite.scripts.cli import UsageError
 

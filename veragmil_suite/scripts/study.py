@@ -25,12 +25,12 @@ import os
 import sys
 import time
 
-from veragmil_suite.distributed import add_ray_argument, check_ray_argument
-from veragmil_suite.evaluation import SPEC_HELP, parse_agent_argument
-from veragmil_suite.foods import TRAINING_FOODS, UNSEEN_FOODS
-from veragmil_suite.pipeline import PipelineSettings, StageError, run_pipeline
+from veragmil_suite.evaluation.scoring import SPEC_HELP, parse_agent_argument
+from veragmil_suite.models.foods import TRAINING_FOODS, UNSEEN_FOODS
 from veragmil_suite.scripts import cli
 from veragmil_suite.scripts.cli import Parser, UsageError, command
+from veragmil_suite.study.pipeline import PipelineSettings, StageError, run_pipeline
+from veragmil_suite.utils.distributed import add_ray_argument, check_ray_argument
 
 # Ctrl-C: what is finished stays, and the same command picks up from there
 INTERRUPTED = "interrupted; run the same command (same --output-dir) again to resume: finished pieces are kept"

@@ -1,5 +1,5 @@
 import dataclasses, json, sys, time
-from veragmil_suite.foods import get_food
+from veragmil_suite.models.foods import get_food
 from veragmil_suite.calibration.lifting_cylinder import lifting_cylinder
 cfg = json.loads(sys.argv[1])
 f = get_food(cfg["food"])

@@ -2,7 +2,7 @@
 import dataclasses, json, math, sys, time
 import xml.etree.ElementTree as ET
 import mujoco, numpy as np
-from veragmil_suite.foods import get_food
+from veragmil_suite.models.foods import get_food
 from veragmil_suite.models.grains import GrainPile
 from veragmil_suite.models.dish import DishShape
 

@@ -3,7 +3,7 @@
     python results/calibration/exploration/expert_probe.py FOOD PHYSICS SEEDS [MAKE_KWARGS_JSON]
     SOLREF=0.04 python ... : the grains' contact time constant (s) set after each reset
     SPOON_SOLREF=0.08 python ... : the spoon's, for its contacts alone
-    PROFILE=spacemouse python ... : another operator profile (veragmil_suite.expert.PROFILES)
+    PROFILE=spacemouse python ... : another operator profile (veragmil_suite.devices.expert.PROFILES)
 
 Prints per seed: success, grains and grams in the spoon at the end, grains spilled (outside the bowl's rim), steps,
 control steps a second (resets untimed), and at each phase's start the grains in the spoon / spilled.
@@ -17,8 +17,8 @@ import time
 import numpy as np
 
 import veragmil_suite  # noqa: F401
-from veragmil_suite.bench import make_env
-from veragmil_suite.expert import ScriptedScooper
+from veragmil_suite.scripts.bench import make_env
+from veragmil_suite.devices.expert import ScriptedScooper
 
 food, physics = sys.argv[1], sys.argv[2]
 seeds = [int(s) for s in sys.argv[3].split(",")]

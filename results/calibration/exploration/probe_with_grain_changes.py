@@ -11,7 +11,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import veragmil_suite  # noqa
-from veragmil_suite import foods
+from veragmil_suite.models import foods
 
 food = sys.argv[1]
 changes = json.loads(sys.argv[2])

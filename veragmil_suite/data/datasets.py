@@ -1,0 +1,581 @@
+"""
+ScoopGranular demonstration files as a whole (robomimic's HDF5 schema, written by veragmil_suite.data.recording):
+what a file holds, merging, train/valid splits, cleaning after interrupted writes, replay and re-rendered camera
+observations. The console programs of veragmil_suite.scripts.dataset_tools print what these return.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from collections import Counter
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from veragmil_suite.data import safe_hdf5
+from veragmil_suite.data.recording import (
+    COMPATIBLE_KWARGS,
+    DamagedDataset,
+    DatasetError,
+    action_limit,
+    check_demo,
+    demo_names,
+    demo_problems,
+    env_kwargs_variants,
+    interrupted_writes,
+    open_dataset,
+    refresh_summary,
+    remove_interrupted_writes,
+    split_demos,
+    updated_file,
+    write_lock,
+    write_masks,
+)
+from veragmil_suite.learning import robomimic_obs
+from veragmil_suite.models.foods import with_recorded_physics
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# What a file holds                                                                                                #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+def dataset_summary(path: str | Path) -> dict:
+    """What a dataset holds: demos, lengths, foods, devices, success, spillage, obs keys, filter keys, provenance;
+    what interrupted writes left (working copies beside it, or older versions' half-written demos in it), whether
+    another process is writing it now, and the demos that read but are flagged (``demo_problems``)."""
+    being_written = safe_hdf5.FileLock(path).in_use_elsewhere()
+    with open_dataset(path) as f:
+        data = f["data"]
+        meta = json.loads(data.attrs["env_args"])
+        kwargs = meta.get("env_kwargs", {})
+        names = demo_names(f)
+        limit = action_limit(kwargs)
+        problems = {n: found for n in names if (found := demo_problems(data[n], limit))}
+        control_freq = float(kwargs.get("control_freq", 20))
+        lengths = np.array([int(data[n].attrs["num_samples"]) for n in names], dtype=int)
+        demos = []
+        for n in names:
+            a = data[n].attrs
+            demos.append(
+                dict(
+                    name=n,
+                    steps=int(a["num_samples"]),
+                    food=str(a.get("food", kwargs.get("food", ""))),
+                    device=str(a.get("device", "")),
+                    operator=str(a.get("operator", "")),
+                    success=bool(a.get("success", False)) if "success" in a else None,
+                    grains_spilled=int(a.get("grains_spilled", 0)),
+                    spilled_volume_cm3=float(a.get("spilled_volume_cm3", 0.0)),
+                    spill_fraction=float(a.get("spill_fraction", 0.0)),
+                    completion_time_s=float(a.get("completion_time_s", 0.0)),
+                )
+            )
+        obs_keys = {}
+        if names:
+            first = data[names[0]]
+            obs_keys = {k: (list(d.shape[1:]), str(d.dtype)) for k, d in first.get("obs", {}).items()}
+        masks = {k: len(f["mask"][k]) for k in f["mask"]} if "mask" in f else {}
+        duplicates = _duplicate_demos(data, names)
+        interrupted = interrupted_writes(f)
+        if not being_written:
+            interrupted += [p.name for p in safe_hdf5.working_copies(path)]
+        attempts = json.loads(data.attrs.get("attempts", "[]"))
+        variants = env_kwargs_variants(f)
+        provenance = {k: _plain(data.attrs[k]) for k in data.attrs if k not in _SUMMARY_ATTRS}
+    known = [d for d in demos if d["success"] is not None]
+    success_times = [d["completion_time_s"] for d in known if d["success"]]
+    per_food = {}
+    for food in sorted({d["food"] for d in demos}):
+        rows = [d for d in demos if d["food"] == food]
+        ok = [d for d in rows if d["success"]]
+        per_food[food] = dict(
+            demos=len(rows),
+            success=len(ok),
+            mean_spilled=float(np.mean([d["grains_spilled"] for d in rows])),
+            mean_spilled_cm3=float(np.mean([d["spilled_volume_cm3"] for d in rows])),
+            mean_time_s=float(np.mean([d["completion_time_s"] for d in ok])) if ok else None,
+        )
+    return dict(
+        path=str(path),
+        env=dict(
+            env_name=meta.get("env_name"),
+            robot=kwargs.get("robots"),
+            controller=_controller_name(kwargs.get("controller_configs")),
+            control_freq=control_freq,
+            horizon=kwargs.get("horizon"),
+            cameras=kwargs.get("camera_names") if kwargs.get("use_camera_obs") else [],
+            env_kwargs_variants=variants,
+        ),
+        demos=len(names),
+        transitions=int(lengths.sum()),
+        length_steps=dict(
+            mean=float(lengths.mean()) if len(lengths) else 0.0,
+            min=int(lengths.min()) if len(lengths) else 0,
+            max=int(lengths.max()) if len(lengths) else 0,
+        ),
+        duration_s=float(lengths.sum() / control_freq),
+        foods=dict(Counter(d["food"] for d in demos)),
+        devices=dict(Counter(d["device"] for d in demos)),
+        operators=dict(Counter(d["operator"] for d in demos)),
+        success_rate=(sum(d["success"] for d in known) / len(known)) if known else None,
+        attempts=len(attempts),
+        attempt_success_rate=(sum(bool(a.get("success")) for a in attempts) / len(attempts)) if attempts else None,
+        mean_grains_spilled=float(np.mean([d["grains_spilled"] for d in demos])) if demos else 0.0,
+        mean_spilled_cm3=float(np.mean([d["spilled_volume_cm3"] for d in demos])) if demos else 0.0,
+        mean_completion_time_s=float(np.mean(success_times)) if success_times else None,
+        per_food=per_food,
+        obs_keys=obs_keys,
+        filter_keys=masks,
+        duplicates=duplicates,
+        interrupted_writes=interrupted,
+        being_written=being_written,
+        problems=problems,
+        provenance=provenance,
+        demo_list=demos,
+    )
+
+
+def _duplicate_demos(data, names: list[str]) -> list[list[str]]:
+    """Groups of demos with identical actions from the same start state (one episode recorded twice: the same
+    seed again). The first state stands for the rest: reading every state of a large file would take minutes."""
+    groups: dict[str, list[str]] = {}
+    for name in names:
+        digest = hashlib.sha256(np.ascontiguousarray(data[name]["actions"][()]).tobytes())
+        if "states" in data[name] and len(data[name]["states"]):
+            digest.update(np.ascontiguousarray(data[name]["states"][0]).tobytes())
+        groups.setdefault(digest.hexdigest(), []).append(name)
+    return [group for group in groups.values() if len(group) > 1]
+
+
+_SUMMARY_ATTRS = ("env_args", "attempts", "total", "foods", "devices", "operators", "merged_from")
+
+
+def _controller_name(config) -> str:
+    if not isinstance(config, dict):
+        return str(config)
+    part = config.get("body_parts", {}).get("right", config)
+    return str(part.get("type", config.get("type", "")))
+
+
+def _plain(value):
+    if isinstance(value, bytes):
+        return value.decode()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# Merge, split and clean                                                                                           #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+def merge_datasets(inputs: list[str | Path], output: str | Path, valid_ratio: float = 0.1) -> int:
+    """Merge ``inputs`` into a new file ``output``; returns the number of demos. Each demo keeps its provenance.
+
+    Raises:
+        DatasetError: [an input is not a ScoopGranular dataset, or inputs differ in robot, controller, control
+            rate, cameras or observation keys]
+    """
+    output = Path(output)
+    if any(Path(i).resolve() == output.resolve() for i in inputs):
+        raise DatasetError(f"{output} is also an input: merge into a new file")
+    first_meta, first_obs, attempts, sources = None, None, [], []
+    with updated_file(output, new=True) as working:
+        fout = working.file
+        data_out = fout.create_group("data")
+        index = 0
+        for path in inputs:
+            with open_dataset(path) as fin:
+                data_in = fin["data"]
+                meta = json.loads(data_in.attrs["env_args"])
+                names = demo_names(fin)
+                obs = {k: d.shape[1:] for k, d in data_in[names[0]]["obs"].items()} if names else None
+                if first_meta is None:
+                    first_meta = meta
+                    for key, value in data_in.attrs.items():
+                        data_out.attrs[key] = value
+                else:
+                    differ = [
+                        k
+                        for k in COMPATIBLE_KWARGS
+                        if json.dumps(meta["env_kwargs"].get(k), sort_keys=True)
+                        != json.dumps(first_meta["env_kwargs"].get(k), sort_keys=True)
+                    ]
+                    if differ:
+                        raise DatasetError(f"{path} was recorded with other {', '.join(differ)} than {inputs[0]}")
+                if obs is not None:
+                    if first_obs is None:
+                        first_obs = obs
+                    elif obs != first_obs:
+                        raise DatasetError(f"{path} has other observation keys or shapes than the files before it")
+                for name in names:
+                    new = f"demo_{index}"
+                    fin.copy(data_in[name], data_out, name=new)
+                    g = data_out[new]
+                    g.attrs["merged_from"] = f"{path}:{name}"
+                    if "env_args" not in g.attrs:
+                        g.attrs["env_args"] = json.dumps(meta)
+                    if "food" not in g.attrs and "food" in meta["env_kwargs"]:
+                        g.attrs["food"] = meta["env_kwargs"]["food"]
+                    index += 1
+                for entry in json.loads(data_in.attrs.get("attempts", "[]")):
+                    attempts.append(dict(entry, source=str(path)))
+                sources.append(str(path))
+            working.check()
+        if first_meta is None:
+            raise DatasetError("no input files")
+        data_out.attrs["attempts"] = json.dumps(attempts)
+        data_out.attrs["merged_from"] = json.dumps(sources)
+        refresh_summary(fout, valid_ratio)
+    return index
+
+
+def split_dataset(path: str | Path, ratio: float, seed: int = 0, filter_key: str | None = None) -> tuple[int, int]:
+    """Rewrite the train/valid masks of ``path`` (``<filter_key>_train/_valid`` within a filter key)."""
+    if not 0 <= ratio < 1:
+        raise DatasetError(f"the validation ratio must lie in [0, 1), got {ratio}")
+    open_dataset(path).close()  # a clear error for a file that is not a dataset
+    with updated_file(path) as working:
+        f = working.file
+        if filter_key is None:
+            names, prefix = demo_names(f), ""
+        else:
+            if "mask" not in f or filter_key not in f["mask"]:
+                have = ", ".join(f["mask"].keys()) if "mask" in f else "none"
+                raise DatasetError(f"{path} has no filter key {filter_key!r} (it has: {have})")
+            names, prefix = [n.decode() for n in f["mask"][filter_key][()]], filter_key + "_"
+        train, valid = split_demos(names, ratio, seed)
+        if "mask" not in f:
+            write_masks(f)
+        for key, members in (("train", train), ("valid", valid)):
+            if prefix + key in f["mask"]:
+                del f["mask"][prefix + key]
+            f["mask"].create_dataset(prefix + key, data=np.array(members, dtype="S"))
+    return len(train), len(valid)
+
+
+def clean_dataset(path: str | Path) -> list[str]:
+    """
+    Remove what interrupted writes left (never a finished demo that reads): working copies beside ``path``, the
+    half-written demos older versions left in it, and, in a file damaged by a write cut short in place (older
+    versions, other programs), whatever no longer reads: the file is then rebuilt from its complete demos
+    (salvage_dataset). Returns what was removed.
+
+    Raises:
+        DatasetError: [not a dataset, in use by another process, or nothing of it can be read]
+    """
+    path = Path(path)
+    if not path.is_file():
+        open_dataset(path)  # the clear error for a missing file or a folder
+    with write_lock(path) as lock:
+        removed = [p.name for p in safe_hdf5.remove_working_copies(path)]
+        try:
+            with open_dataset(path) as f:
+                inside = interrupted_writes(f)
+            if inside:
+                with updated_file(path, lock=lock) as working:
+                    remove_interrupted_writes(working.file)
+        except (DamagedDataset, KeyError, OSError, RuntimeError):
+            inside = salvage_dataset(path, lock)
+    return inside + removed
+
+
+def salvage_dataset(path: str | Path, lock: safe_hdf5.FileLock) -> list[str]:
+    """
+    Rebuild ``path`` (its write lock ``lock`` held) from what still reads: the file's attributes, every demo that
+    reads whole and passes the schema check, the filter keys that read (less the demos dropped), and the standard
+    masks redone. Returns what was dropped.
+
+    Raises:
+        DatasetError: [the file's data group or its env_args cannot be read: nothing to salvage]
+    """
+    dropped = []
+    try:
+        fin = h5py.File(path, "r")
+    except OSError as error:
+        raise DatasetError(f"{path} cannot be read as HDF5 at all: nothing to salvage ({error})") from None
+    with fin, updated_file(path, new=True, lock=lock) as working:
+        fout = working.file
+        try:
+            data_in = fin["data"]
+            names = demo_names(fin)
+            json.loads(data_in.attrs["env_args"])
+        except (KeyError, OSError, RuntimeError, TypeError, ValueError) as error:
+            raise DatasetError(
+                f"{path}: its data group or env_args cannot be read: nothing to salvage ({error})"
+            ) from None
+        data_out = fout.create_group("data")
+        for key in data_in.attrs:
+            try:
+                data_out.attrs[key] = data_in.attrs[key]
+            except (KeyError, OSError, RuntimeError):
+                dropped.append(f"data attribute {key} (damaged)")
+        kept = []
+        for name in names:
+            try:
+                g = data_in[name]
+                check_demo(g, name)
+                g.visititems(lambda _, d: d[()] if isinstance(d, h5py.Dataset) else None)
+                fin.copy(g, data_out, name=name)
+                kept.append(name)
+            except (DamagedDataset, KeyError, OSError, RuntimeError) as error:
+                dropped.append(f"data/{name} ({str(error).removeprefix(name).strip(' :')})")
+        dropped += [f"data/{n}" for n in data_in if n not in names] + [k for k in fin if k not in ("data", "mask")]
+        masks = {}
+        try:
+            keys = list(fin["mask"]) if "mask" in fin else []
+        except (KeyError, OSError, RuntimeError):
+            keys = []
+            dropped.append("mask (damaged)")
+        for key in keys:
+            try:
+                masks[key] = [m for m in fin["mask"][key][()] if m.decode() in kept]
+            except (KeyError, OSError, RuntimeError):
+                dropped.append(f"mask/{key} (damaged)")
+        ratio = len(masks.get("valid", [])) / max(1, len(masks.get("valid", [])) + len(masks.get("train", [])))
+        refresh_summary(fout, ratio if masks.get("train") else 0.1)
+        for key, members in masks.items():
+            if key not in fout["mask"]:
+                fout["mask"].create_dataset(key, data=np.array(members, dtype="S"))
+    return dropped
+
+
+# ---------------------------------------------------------------------------------------------------------------- #
+# Replay and re-rendering: an environment rebuilt from the file                                                    #
+# ---------------------------------------------------------------------------------------------------------------- #
+
+
+class DemoEnvs:
+    """Environments for a file's demos, built from each demo's own env_args (a merged file may mix foods)."""
+
+    def __init__(self, f: h5py.File, **overrides):
+        self.file_meta = json.loads(f["data"].attrs["env_args"])
+        self.overrides = overrides
+        self._key = None
+        self.env = None
+
+    def for_demo(self, g: h5py.Group):
+        """The env for this demo's env_args and the overrides: the current one unless they differ."""
+        meta = json.loads(g.attrs["env_args"]) if "env_args" in g.attrs else self.file_meta
+        kwargs = with_recorded_physics({k: v for k, v in meta["env_kwargs"].items() if k not in ("env_name",)})
+        kwargs.update(self.overrides)
+        kwargs.update(has_renderer=False, ignore_done=True)
+        key = json.dumps(kwargs, sort_keys=True)
+        if key != self._key:
+            self.close()
+            import robosuite
+
+            import veragmil_suite  # noqa: F401  (registers ScoopGranular)
+
+            self.env = robosuite.make(meta["env_name"], **kwargs)
+            self.env.reset()
+            self._key = key
+        return self.env
+
+    def start(self, g: h5py.Group) -> tuple:
+        """The demo's env, reset to its first state; returns (env, observation)."""
+        env = self.for_demo(g)
+        obs = robomimic_obs.reset_to_demo(env, _text(g.attrs["model_file"]), g["states"][0])
+        return env, obs
+
+    def close(self) -> None:
+        if self.env is not None:
+            self.env.close()
+            self.env = None
+
+
+def _text(value) -> str:
+    return value.decode() if isinstance(value, bytes) else str(value)
+
+
+def _render(env, camera: str, height: int, width: int) -> np.ndarray:
+    import robosuite.macros
+
+    frame = env.sim.render(camera_name=camera, height=height, width=width)
+    return frame[::-1] if robosuite.macros.IMAGE_CONVENTION == "opengl" else frame
+
+
+def _check_camera(env, camera: str) -> None:
+    names = [env.sim.model.camera_id2name(i) for i in range(env.sim.model.ncam)]
+    if camera not in names:
+        raise DatasetError(f"no camera {camera!r} in this scene; cameras: {', '.join(names)}")
+
+
+def _select_demos(f: h5py.File, demos: list[str] | None, n: int | None, filter_key: str | None = None) -> list[str]:
+    names = demo_names(f)
+    if filter_key:
+        if "mask" not in f or filter_key not in f["mask"]:
+            raise DatasetError(f"no filter key {filter_key!r}")
+        keep = {x.decode() for x in f["mask"][filter_key][()]}
+        names = [x for x in names if x in keep]
+    if demos:
+        missing = [d for d in demos if d not in names]
+        if missing:
+            raise DatasetError(
+                f"no demo {', '.join(missing)} (demos: {', '.join(names[:10])}{'...' if len(names) > 10 else ''})"
+            )
+        names = list(demos)
+    return names[:n] if n else names
+
+
+def replay_demos(
+    path: str | Path,
+    video: str | Path | None,
+    demos: list[str] | None = None,
+    n: int | None = None,
+    camera: str = "agentview",
+    height: int = 480,
+    width: int = 640,
+    fps: float | None = None,
+    skip: int = 1,
+    use_actions: bool = False,
+) -> list[dict]:
+    """Replay demos to one mp4, from their states or (use_actions) their actions open loop.
+
+    Returns, per demo: its name, steps, and with use_actions the largest state error against the recorded
+    states (0.0 when replay is exact) and the final metrics of the replay.
+    """
+    import imageio
+
+    with open_dataset(path) as f:
+        names = _select_demos(f, demos, n)
+        envs = DemoEnvs(f, has_offscreen_renderer=video is not None, use_camera_obs=False)
+        writer = None
+        results = []
+        try:
+            for name in names:
+                g = f["data"][name]
+                env, _ = envs.start(g)
+                if video is not None:
+                    _check_camera(env, camera)
+                    if writer is None:
+                        writer = imageio.get_writer(str(video), fps=fps or env.control_freq / skip, macro_block_size=1)
+                states = g["states"][()]
+                # what was executed: the operator's own actions under injected noise are the labels, not these
+                actions = g["executed_actions" if "executed_actions" in g else "actions"][()]
+                result = dict(demo=name, steps=len(actions))
+                errors = []
+                info = {}
+                for t in range(len(actions)):
+                    if use_actions:
+                        if t > 0:
+                            errors.append(float(np.abs(env.sim.get_state().flatten() - states[t]).max()))
+                    else:
+                        env.sim.set_state_from_flattened(states[t])
+                        env.sim.forward()
+                    if writer is not None and t % skip == 0:
+                        writer.append_data(_render(env, camera, height, width))
+                    if use_actions:
+                        _, _, _, info = env.step(actions[t])
+                if use_actions:
+                    result["max_state_error"] = max(errors) if errors else 0.0
+                    result["success"] = bool(info.get("success", False))
+                    result["grains_in_spoon"] = int(info.get("grains_in_spoon", 0))
+                    result["grains_spilled"] = int(info.get("grains_spilled", 0))
+                results.append(result)
+        finally:
+            if writer is not None:
+                writer.close()
+            envs.close()
+    return results
+
+
+def render_observations(
+    path: str | Path,
+    output: str | Path,
+    cameras: list[str],
+    height: int,
+    width: int,
+    depth: bool = False,
+    demos: list[str] | None = None,
+) -> int:
+    """Copy a dataset with its camera observations re-rendered from the states; returns the number of demos.
+
+    Everything else (actions, states, rewards, dones, low-dim observations, attributes, masks) is copied as is.
+    next_obs of the last step comes from replaying the last action (as robomimic's dataset_states_to_obs does).
+    """
+    output = Path(output)
+    if Path(path).resolve() == output.resolve():
+        raise DatasetError("write the re-rendered dataset to a new file")
+    overrides = dict(
+        use_camera_obs=True,
+        has_offscreen_renderer=True,
+        camera_names=list(cameras),
+        camera_heights=height,
+        camera_widths=width,
+        camera_depths=depth,
+    )
+    with open_dataset(path) as fin, updated_file(output, new=True) as working:
+        fout = working.file
+        names = _select_demos(fin, demos, None)
+        data_in = fin["data"]
+        data_out = fout.create_group("data")
+        for key, value in data_in.attrs.items():
+            data_out.attrs[key] = value
+        data_out.attrs["env_args"] = _with_cameras(_text(data_in.attrs["env_args"]), overrides)
+        envs = DemoEnvs(fin, **overrides)
+        try:
+            for name in names:
+                g = data_in[name]
+                env, _ = envs.start(g)
+                for cam in cameras:
+                    _check_camera(env, cam)
+                out = data_out.create_group(name)
+                for key in ("actions", "executed_actions", "states", "rewards", "dones"):
+                    if key in g:
+                        fin.copy(g[key], out, name=key)
+                for key, value in g.attrs.items():
+                    out.attrs[key] = value
+                if "env_args" in g.attrs:
+                    out.attrs["env_args"] = _with_cameras(_text(g.attrs["env_args"]), overrides)
+                executed = g["executed_actions" if "executed_actions" in g else "actions"][()]
+                images = _render_images(env, g["states"][()], executed)
+                for group in ("obs", "next_obs"):
+                    og = out.create_group(group)
+                    for key, d in g[group].items():
+                        if not _is_camera_key(key):
+                            fin.copy(d, og, name=key)
+                    for key, frames in images[group].items():
+                        og.create_dataset(key, data=frames, compression="gzip", compression_opts=4, shuffle=True)
+                working.check()  # a full disk stops the job at the demo it refused
+        finally:
+            envs.close()
+        if "mask" in fin:
+            fin.copy(fin["mask"], fout, name="mask")
+        if demos:
+            write_masks(fout)
+    return len(names)
+
+
+def _is_camera_key(key: str) -> bool:
+    return key.endswith("_image") or key.endswith("_depth")
+
+
+def _camera_observations(env) -> dict:
+    obs = robomimic_obs.observation(env, robomimic_obs.observe(env))
+    return {k: v for k, v in obs.items() if _is_camera_key(k)}
+
+
+def _render_images(env, states: np.ndarray, actions: np.ndarray) -> dict:
+    frames = []
+    for state in states:
+        env.sim.set_state_from_flattened(state)
+        frames.append(_camera_observations(env))
+    env.sim.set_state_from_flattened(states[-1])
+    env.sim.forward()
+    env.step(actions[-1])
+    last = _camera_observations(env)
+    keys = frames[0].keys()
+    obs = {k: np.stack([fr[k] for fr in frames]) for k in keys}
+    next_obs = {k: np.concatenate([obs[k][1:], last[k][None]]) for k in keys}
+    return dict(obs=obs, next_obs=next_obs)
+
+
+def _with_cameras(env_args_json: str, overrides: dict) -> str:
+    meta = json.loads(env_args_json)
+    meta["env_kwargs"].update({k: v for k, v in overrides.items() if k != "has_offscreen_renderer"})
+    meta["env_kwargs"]["has_offscreen_renderer"] = True
+    return json.dumps(meta, indent=4)

@@ -1,0 +1,1 @@
+"""Scoring agents on ScoopGranular food by food: rollouts, statistics, the paper's Tables II and III."""

@@ -1,0 +1,1 @@
+"""The study: record -> train -> evaluate over operators, algorithms and seeds (quickstart, veragmil-study)."""

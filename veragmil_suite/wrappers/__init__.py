@@ -1,0 +1,1 @@
+"""ScoopGranular behind other interfaces: the Gymnasium environment veragmil/ScoopGranular-v0."""
