@@ -2,7 +2,7 @@
 Evaluation throughput of veragmil-evaluate: episodes per minute with 1 and 2 worker processes, and their ratio.
 
 The same episodes (same agent, food and seeds, so the same work) run once per process count through
-veragmil_suite.evaluation.scoring.evaluate, timed from the call to the last record: worker start-up is included, as a
+veragmil_suite.evaluation.evaluate.evaluate, timed from the call to the last record: worker start-up is included, as a
 user pays it. A warm-up episode first fills the settled-pile cache. The issue's target is a ratio of at least 1.7.
 
     python scripts/bench_eval.py                                   # the scripted expert on pasta
@@ -31,7 +31,7 @@ SECONDS_PER_MINUTE = 60.0
 
 def bench(spec: str, food: str, episodes: int, processes: int, horizon: int, seed: int) -> dict:
     """Runs ``episodes`` episodes of one agent on ``food`` in ``processes`` workers; returns the rates."""
-    from veragmil_suite.evaluation.scoring import evaluate
+    from veragmil_suite.evaluation.evaluate import evaluate
 
     start = time.perf_counter()
     result = evaluate(

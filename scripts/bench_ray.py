@@ -55,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--repeats", type=int, default=2, help="measurements of each side (the fastest is kept)")
     args = p.parse_args(argv)
 
-    from veragmil_suite.evaluation.scoring import evaluate
+    from veragmil_suite.evaluation.evaluate import evaluate
     from veragmil_suite.study.pipeline import _console, _train_piece, training_config, training_resources
     from veragmil_suite.utils.distributed import THIS_MACHINE, ray_session, run_pieces
 

@@ -54,7 +54,7 @@ def episode_start(seed: int) -> np.ndarray:
     import robosuite
 
     import veragmil_suite  # noqa: F401
-    from veragmil_suite.evaluation.scoring import EXPERT_KWARGS
+    from veragmil_suite.evaluation.agents import EXPERT_KWARGS
 
     env = robosuite.make("ScoopGranular", **dict(EXPERT_KWARGS, food=PROBE_FOOD, seed=seed))
     obs = env.reset()
@@ -81,7 +81,7 @@ NO_JOINT_NOISE = {"initialization_noise": {"magnitude": 0.0, "type": "gaussian"}
 
 
 def probe(checkpoint: str, episodes: list[int], foods: list[str], seed: int) -> None:
-    from veragmil_suite.evaluation.scoring import AgentSpec, EpisodeTask, run_episode
+    from veragmil_suite.evaluation.agents import AgentSpec, EpisodeTask, run_episode
 
     spec = AgentSpec("checkpoint", checkpoint)
     print(f"\n{checkpoint}, as drawn and without the arm's initial joint noise:\n")

@@ -22,7 +22,8 @@ from collections import Counter
 from dataclasses import replace
 from pathlib import Path
 
-from veragmil_suite.evaluation.scoring import EpisodeRecord, EvaluationResult
+from veragmil_suite.evaluation.agents import EpisodeRecord
+from veragmil_suite.evaluation.reporting import EvaluationResult
 from veragmil_suite.study.pipeline import write_seed_tables
 
 # the evaluation settings two results.json must share for their episodes to be comparable

@@ -179,7 +179,7 @@ def test_run_agent_rolls_the_checkpoint_out_in_a_framestacked_env(trained, tmp_p
 
 
 def test_evaluation_rolls_the_checkpoint_out_one_observation_at_a_time(trained):
-    from veragmil_suite.evaluation.scoring import evaluate
+    from veragmil_suite.evaluation.evaluate import evaluate
 
     result, checkpoints = trained
     assert result.returncode == 0, result.stderr[-3000:]

@@ -15,17 +15,15 @@ from pathlib import Path
 import pytest
 from helpers.recording import record_file, tiny_env_kwargs
 
-from veragmil_suite.evaluation.scoring import (
-    JOURNAL_NAME,
+from veragmil_suite.evaluation.agents import (
     EpisodeRecord,
     EpisodeTask,
     EvaluationError,
-    EvaluationResult,
-    Journal,
-    evaluate,
     parse_agent_argument,
     parse_spec,
 )
+from veragmil_suite.evaluation.evaluate import JOURNAL_NAME, Journal, evaluate
+from veragmil_suite.evaluation.reporting import EvaluationResult
 
 BIN = Path(sys.executable).parent
 # a cheap scene: a dozen pasta pieces, one settled pile

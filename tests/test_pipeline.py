@@ -120,7 +120,8 @@ def test_observation_sets_name_their_runs_and_columns_and_the_default_set_keeps_
 
 
 def test_the_seed_table_gives_each_seeds_rate_and_their_mean_and_range():
-    from veragmil_suite.evaluation.scoring import EpisodeRecord, EvaluationResult
+    from veragmil_suite.evaluation.agents import EpisodeRecord
+    from veragmil_suite.evaluation.reporting import EvaluationResult
     from veragmil_suite.study.pipeline import seed_markdown, seed_spread
 
     def episodes(agent, food, successes, n=4):

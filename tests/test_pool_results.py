@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from veragmil_suite.evaluation.scoring import EpisodeRecord
+from veragmil_suite.evaluation.agents import EpisodeRecord
 
 SCRIPT = Path(__file__).parents[1] / "scripts" / "pool_results.py"
 FOODS = ["rice", "pasta"]

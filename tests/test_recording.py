@@ -23,7 +23,7 @@ from veragmil_suite.data.recording import (
     open_dataset,
     provenance,
 )
-from veragmil_suite.evaluation.scoring import parse_spec
+from veragmil_suite.evaluation.agents import parse_spec
 from veragmil_suite.learning import robomimic_obs
 from veragmil_suite.scripts.dataset_tools import info_main, split_main
 

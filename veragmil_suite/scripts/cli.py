@@ -790,17 +790,17 @@ def _check_env_value(name: str, value: Any, kwargs: dict, default: Any) -> None:
 
 
 class Agent(Kind):
-    """An evaluated agent, ``[NAME=]SPEC`` (veragmil_suite.evaluation.scoring.parse_agent_argument), a checkpoint
+    """An evaluated agent, ``[NAME=]SPEC`` (veragmil_suite.evaluation.agents.parse_agent_argument), a checkpoint
     read now."""
 
     @property
     def accepted(self) -> str:
-        from veragmil_suite.evaluation.scoring import SPEC_HELP
+        from veragmil_suite.evaluation.agents import SPEC_HELP
 
         return f"[NAME=]SPEC with SPEC {SPEC_HELP}"
 
     def __call__(self, text: str) -> str:
-        from veragmil_suite.evaluation.scoring import parse_agent_argument, parse_spec
+        from veragmil_suite.evaluation.agents import parse_agent_argument, parse_spec
 
         try:
             _, spec = parse_agent_argument(text)

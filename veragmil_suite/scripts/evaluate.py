@@ -16,7 +16,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from veragmil_suite.evaluation.scoring import ALL_FOODS, DEFAULT_VIDEO_CAMERA, SPEC_HELP, evaluate, parse_agent_argument
+from veragmil_suite.evaluation.agents import ALL_FOODS, DEFAULT_VIDEO_CAMERA, SPEC_HELP, parse_agent_argument
+from veragmil_suite.evaluation.evaluate import evaluate
 from veragmil_suite.scripts import cli
 from veragmil_suite.scripts.cli import Parser, UsageError, command
 from veragmil_suite.utils.distributed import add_ray_argument, check_ray_argument

@@ -25,7 +25,7 @@ import os
 import sys
 import time
 
-from veragmil_suite.evaluation.scoring import SPEC_HELP, parse_agent_argument
+from veragmil_suite.evaluation.agents import SPEC_HELP, parse_agent_argument
 from veragmil_suite.models.foods import TRAINING_FOODS, UNSEEN_FOODS
 from veragmil_suite.scripts import cli
 from veragmil_suite.scripts.cli import Parser, UsageError, command

@@ -3,7 +3,7 @@ The paper's pipeline from scripted data: record demonstrations, train robomimic 
 
 Each stage runs our own console programs in a child process (veragmil-collect, veragmil-train), exactly as a user
 would type them, with its output kept in a log file beside its results; evaluation goes through
-veragmil_suite.evaluation.scoring. veragmil-quickstart and veragmil-study are thin command lines over this module.
+veragmil_suite.evaluation. veragmil-quickstart and veragmil-study are thin command lines over this module.
 
 A run resumes in its output directory: every piece that is complete is skipped (and said so), so an interrupted
 or partial grid continues where it stopped and a larger one reuses the pieces of a smaller one.
@@ -15,7 +15,7 @@ or partial grid continues where it stopped and a larger one reuses the pieces of
 - Training: ``runs/<profile>_<algo>_<N>demos_<steps>steps`` (``_seed<S>`` added for a training seed other than the
   default, ``seed + 1``), complete once its last checkpoint exists and its
   config equals the one asked for (a different one is refused: pick another output directory).
-- Evaluation: every finished episode is journaled (veragmil_suite.evaluation.scoring), and only the missing ones run.
+- Evaluation: every finished episode is journaled (veragmil_suite.evaluation.evaluate), and only the missing ones run.
 
 With ``ray`` (veragmil-study --ray [ADDRESS]) the same pieces run as Ray tasks (veragmil_suite.utils.distributed): each
 recording attempt and evaluation episode on one CPU, each training run on its torch threads' CPUs (and a GPU when
@@ -78,7 +78,7 @@ class PipelineSettings:
     ``algo_epochs`` (algorithm -> epochs) gives an algorithm its own budget instead of ``epochs``: BC-RNN costs 7x
     BC's time per gradient step. Each algorithm is evaluated at the end of its own training, and at the listed
     ``eval_steps`` its training reaches.
-    ``agents`` (name -> agent SPEC of veragmil_suite.evaluation.scoring) are evaluated beside the run's own, on the same
+    ``agents`` (name -> agent SPEC of veragmil_suite.evaluation.agents) are evaluated beside the run's own, on the same
     bowls: a pretrained checkpoint, another operator profile, a recorded dataset.
     ``train_seeds`` (default: ``seed + 1`` alone) trains each model once per seed, on the same data: the spread
     between training seeds of one recipe is as large as the differences between recipes, so comparisons need it.
@@ -154,7 +154,7 @@ class PipelineSettings:
         self.obs_sets = list(dict.fromkeys(check_observation_set(name) for name in self.obs_sets))
         if not self.obs_sets:
             raise ValueError("obs_sets must name at least one observation set")
-        from veragmil_suite.evaluation.scoring import parse_spec
+        from veragmil_suite.evaluation.agents import parse_spec
 
         own = set(self.own_agents())
         for name, spec in self.agents.items():
@@ -743,10 +743,10 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True, verbose: boo
     skipping every piece a previous run in the same output directory completed; with ``settings.ray``, on Ray.
     ``progress``: a line per stage and progress bars; ``verbose``: also what the recorders and trainings print.
 
-    Returns the evaluation result (veragmil_suite.evaluation.scoring.EvaluationResult); everything is written under
+    Returns the evaluation result (veragmil_suite.evaluation.reporting.EvaluationResult); everything is written under
     ``settings.output_dir``: data/, runs/, eval/ and timings.json.
     """
-    from veragmil_suite.evaluation.scoring import evaluate
+    from veragmil_suite.evaluation.evaluate import evaluate
 
     out = Path(settings.output_dir)
     runs = training_runs(settings)  # every training run, in the grid's order
@@ -906,7 +906,7 @@ def _train_runs(
 
 def _average_rows(result) -> dict[str, dict]:
     """Table II's average rows of ``result`` by group, "seen", "unseen" and "overall" (those its foods have)."""
-    from veragmil_suite.evaluation.scoring import SEEN_LABEL, UNSEEN_LABEL, table_rows
+    from veragmil_suite.evaluation.reporting import SEEN_LABEL, UNSEEN_LABEL, table_rows
 
     names = {SEEN_LABEL: "seen", UNSEEN_LABEL: "unseen", "all": "overall"}
     rows = table_rows(result.summary, result.agents, result.foods)["table2"]
@@ -916,7 +916,7 @@ def _average_rows(result) -> dict[str, dict]:
 def learning_curves(result, points: list[dict]) -> list[dict]:
     """Success on seen and unseen foods (each food weighing the same, 95% Wilson intervals of the group's totals)
     per checkpoint of a sweep: ``points`` name each checkpoint agent's profile, algo, demos per food and steps."""
-    from veragmil_suite.evaluation.scoring import wilson_interval
+    from veragmil_suite.evaluation.reporting import wilson_interval
 
     averages = _average_rows(result)
     out = []
@@ -1030,7 +1030,7 @@ def write_seed_tables(result, points: list[dict], out_dir: Path) -> None:
     import csv
     from dataclasses import replace
 
-    from veragmil_suite.evaluation.scoring import EvaluationResult
+    from veragmil_suite.evaluation.reporting import EvaluationResult
 
     rows = seed_spread(result, points)
     with open(out_dir / "seeds.csv", "w", newline="") as f:

@@ -14,7 +14,7 @@ Acting: from the newest ``observation_horizon`` observations, the policy denoise
 action sequence from Gaussian noise (the enabled scheduler, ``num_inference_timesteps`` steps) and executes
 ``action_horizon`` of its actions from the one that follows the newest observation, before predicting again (action
 chunking). The observation history comes from robomimic's FrameStackWrapper when robomimic wraps the env (its train
-loop, run_trained_agent); given one observation per call (veragmil_suite.evaluation.scoring), the policy keeps it
+loop, run_trained_agent); given one observation per call (veragmil_suite.evaluation.agents), the policy keeps it
 itself, starting an episode with its first observation repeated, as the wrapper and the dataset's frame padding do.
 """
 

@@ -1,0 +1,243 @@
+"""Scoring agents on ScoopGranular food by food: evaluate() runs every (agent, food, episode) and writes the tables.
+
+Episodes run in parallel worker processes, or as Ray tasks (veragmil_suite.utils.distributed), one piece per (agent,
+food, episode); Ray workers are handed the piles settled on the driver, so an episode's outcome does not depend on where
+it ran. Each record is journaled as it arrives, so a killed evaluation resumes where it stopped.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+
+from veragmil_suite.environments.episode import SUCCESS_HOLD_S
+from veragmil_suite.evaluation.agents import (
+    DEFAULT_VIDEO_CAMERA,
+    EXPERT_ROBOT,
+    SPEC_HELP,
+    EpisodeRecord,
+    EpisodeTask,
+    EvaluationError,
+    check_foods,
+    dataset_episodes,
+    driver_piles,
+    env_metadata,
+    init_worker,
+    parse_spec,
+    run_task,
+)
+from veragmil_suite.evaluation.reporting import EvaluationResult, json_safe, video_name
+from veragmil_suite.utils.distributed import Resources, WorkerLost, ray_session, run_pieces
+
+
+def _versions() -> dict[str, str]:
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = {}
+    for package in ("veragmil_suite", "robosuite", "robomimic", "mujoco", "torch", "numpy"):
+        try:
+            out[package] = version(package)
+        except PackageNotFoundError:
+            out[package] = "not installed"
+    return out
+
+
+def evaluate(
+    agents: dict[str, str],
+    foods: list[str],
+    episodes: int,
+    processes: int = 2,
+    seed: int = 0,
+    horizon: int | None = None,
+    videos: int = 0,
+    output_dir: str | None = None,
+    progress: bool = True,
+    env_kwargs: dict | None = None,
+    video_camera: str = DEFAULT_VIDEO_CAMERA,
+    resume: bool = False,
+    say: Callable[[str], None] | None = None,
+    ray: str | None = None,
+    robot: str | None = None,
+) -> EvaluationResult:
+    """
+    Scores each agent (name -> SPEC, see parse_spec) for ``episodes`` episodes per food, env seeds ``seed + i``.
+
+    Every agent scoops with one robot: ``robot``, or by default the one the checkpoints were trained with
+    (EXPERT_ROBOT when there are none); the scripted operators run on it.
+
+    ``env_kwargs`` go to every environment (e.g. n_grains for a cheap scene); ``videos`` first episodes per
+    (agent, food) are saved as mp4 under ``output_dir``/videos. Writes the outputs when ``output_dir`` is given,
+    and journals each finished episode in ``output_dir``/episodes.jsonl as it ends: with ``resume``, episodes
+    the journal holds (same agent SPEC, food, seed, horizon and env_kwargs; their video, if asked for, on disk)
+    are taken from it instead of run again, whatever the agent is named now.
+
+    Episodes run in ``processes`` worker processes, or with ``ray`` (a cluster's address, or
+    distributed.THIS_MACHINE) as Ray tasks of one CPU each, on the piles settled here; either way the journal and
+    the outputs are written here as episodes end.
+
+    Raises:
+        ValueError: [unknown food, bad agent SPEC, non-positive sizes, videos without output_dir, checkpoints of
+            another robot]
+        EvaluationError: [an episode failed in a worker (its traceback in the message)]
+    """
+    foods = check_foods(list(foods))
+    specs = {name: parse_spec(spec) for name, spec in agents.items()}
+    if not specs:
+        raise ValueError(f"no agents to evaluate; an agent is {SPEC_HELP}")
+    if int(episodes) < 1 or int(processes) < 1:
+        raise ValueError(f"episodes and processes must be positive integers, got {episodes} and {processes}")
+    if horizon is not None and int(horizon) < 1:
+        raise ValueError(f"horizon must be a positive integer, got {horizon}")
+    if videos and output_dir is None:
+        raise ValueError("videos need an output_dir to be written to")
+    robot = _evaluated_robot(specs, robot)
+    if robot != EXPERT_ROBOT:
+        env_kwargs = {**(env_kwargs or {}), "robots": robot}
+    video_dir = Path(output_dir) / "videos" if output_dir is not None else None
+    records: list[EpisodeRecord] = []
+    tasks = []
+    # episode-major order: every agent and food progresses together, and a slow food does not come last
+    for i in range(int(episodes)):
+        for name, spec in specs.items():
+            if spec.kind == "dataset":
+                continue
+            for food in foods:
+                video = str(video_dir / video_name(name, food, i)) if i < videos else None
+                task = EpisodeTask(name, spec, food, i, seed + i, horizon, dict(env_kwargs or {}), video, video_camera)
+                tasks.append(task)
+    for name, spec in specs.items():
+        if spec.kind == "dataset":
+            records += dataset_episodes(name, spec.target, foods)
+    journal = Journal(Path(output_dir) / JOURNAL_NAME, resume) if output_dir is not None else None
+    if journal is not None and resume:
+        done = [(t, journal.get(t)) for t in tasks]
+        reused = [replace(record, agent=t.agent) for t, record in done if record is not None]
+        tasks = [t for t, record in done if record is None]
+        if reused and say is not None:
+            say(f"skipping {len(reused)} evaluation episodes journaled in {journal.path}; {len(tasks)} to run")
+        records += reused
+    episodes_run = len(tasks)
+    if tasks:
+        with ray_session(ray) as address:
+            records += _run_parallel(tasks, int(processes), progress, journal, on_ray=address is not None)
+    order = {name: i for i, name in enumerate(specs)}
+    records.sort(key=lambda r: (order[r.agent], foods.index(r.food), r.episode))
+    config = dict(
+        agents={name: str(spec) for name, spec in agents.items()},
+        foods=foods,
+        episodes=int(episodes),
+        seed=int(seed),
+        horizon=horizon,
+        processes=int(processes),
+        ray=ray is not None,
+        videos=int(videos),
+        video_camera=video_camera,
+        env_kwargs=dict(env_kwargs or {}),
+        robot=robot,
+        success_hold_s=SUCCESS_HOLD_S,
+        episodes_run=episodes_run,
+        versions=_versions(),
+    )
+    result = EvaluationResult(records, list(specs), foods, config)
+    if output_dir is not None:
+        result.write(output_dir)
+    return result
+
+
+def _evaluated_robot(specs: dict, robot: str | None) -> str:
+    """The one robot of an evaluation: ``robot`` or the checkpoints'; a ValueError when a checkpoint's differs."""
+    trained = {}
+    for name, spec in specs.items():
+        if spec.kind == "checkpoint":
+            robots = env_metadata(spec.target)["env_kwargs"].get("robots", EXPERT_ROBOT)
+            trained[name] = robots[0] if isinstance(robots, (list, tuple)) else robots
+    if robot is None:
+        robot = next(iter(trained.values()), EXPERT_ROBOT)
+    else:
+        from veragmil_suite.models.humanoid import check_robot
+
+        check_robot(robot)
+    other = {name: r for name, r in trained.items() if r != robot}
+    if other:
+        described = ", ".join(f"{name} ({r})" for name, r in other.items())
+        raise ValueError(
+            f"every agent scoops with one robot, {robot}, but these checkpoints were trained with another: "
+            f"{described}; evaluate them with --robot set to their robot, in a run of their own"
+        )
+    return robot
+
+
+JOURNAL_NAME = "episodes.jsonl"
+
+
+class Journal:
+    """Finished episodes, one JSON line each, keyed by what decides their outcome (not the agent's name)."""
+
+    def __init__(self, path: Path, resume: bool):
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.records: dict[str, EpisodeRecord] = {}
+        if resume and self.path.exists():
+            for line in self.path.read_text().splitlines():
+                try:
+                    entry = json.loads(line)
+                except ValueError:
+                    continue  # the last line of a killed run
+                self.records[entry["key"]] = EpisodeRecord.from_dict(entry["record"])
+        elif self.path.exists():
+            self.path.unlink()
+
+    @staticmethod
+    def key(task: EpisodeTask) -> str:
+        parts = [task.spec.kind, task.spec.target, task.food, task.seed, task.horizon, task.env_kwargs]
+        if task.video_path:
+            parts += [task.video_path, task.video_camera]
+        return json.dumps(parts, sort_keys=True)
+
+    def get(self, task: EpisodeTask) -> EpisodeRecord | None:
+        record = self.records.get(self.key(task))
+        if record is None or (task.video_path and not Path(task.video_path).is_file()):
+            return None
+        return replace(record, episode=task.episode)
+
+    def add(self, task: EpisodeTask, record: EpisodeRecord) -> None:
+        self.records[self.key(task)] = record
+        with open(self.path, "a") as f:
+            f.write(json.dumps(dict(key=self.key(task), record=json_safe(record.to_dict()))) + "\n")
+
+
+def _run_parallel(
+    tasks: list[EpisodeTask], processes: int, progress: bool, journal: Journal | None = None, on_ray: bool = False
+) -> list[EpisodeRecord]:
+    """Runs the tasks in ``processes`` fresh worker processes, or as Ray tasks on the piles settled here, journaling
+    each record as it arrives; the first failure stops the run and is raised."""
+    from tqdm import tqdm
+
+    piles = driver_piles(tasks) if on_ray else None
+    records = []
+    pieces = run_pieces(
+        run_task,
+        tasks,
+        context=piles,
+        processes=processes,
+        on_ray=on_ray,
+        setup=init_worker,
+        resources=Resources(cpus=1),
+    )
+    with tqdm(total=len(tasks), desc="episodes", unit="ep", disable=not progress) as bar, contextlib.closing(pieces):
+        try:
+            for task, record in pieces:
+                records.append(record)
+                if journal is not None:
+                    journal.add(task, record)
+                bar.update(1)
+        except EvaluationError as error:
+            bar.write(f"evaluation failed, stopping the workers: {error}")
+            raise EvaluationError(str(error)) from None
+        except WorkerLost as error:
+            bar.write(f"evaluation failed, stopping the workers: {error}")
+            raise EvaluationError(f"a worker process failed: {error}") from error
+    return records
