@@ -56,7 +56,8 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
 
     from veragmil_suite.evaluation.evaluate import evaluate
-    from veragmil_suite.study.pipeline import _console, _train_piece, training_config, training_resources
+    from veragmil_suite.study.logged_run import console
+    from veragmil_suite.study.training import train_piece, training_config, training_resources
     from veragmil_suite.utils.distributed import THIS_MACHINE, ray_session, run_pieces
 
     print(f"load average before: {_load()}", flush=True)
@@ -76,7 +77,7 @@ def main(argv: list[str] | None = None) -> int:
             command += ["--episodes", str(args.episodes), "--env-kwargs", json.dumps(env_kwargs), "--quiet"]
             command += ["--output-dir", str(work / f"eval{next(runs)}"), "--horizon", str(HORIZON)]
         else:
-            command = [*_console(name), "--device", "scripted", "--food", FOOD, "--n-grains", str(N_GRAINS), "--quiet"]
+            command = [*console(name), "--device", "scripted", "--food", FOOD, "--n-grains", str(N_GRAINS), "--quiet"]
             command += ["--episodes", str(args.demos), "--horizon", str(HORIZON), "--cameras"]
             command += ["--output", str(work / f"data{next(runs)}.hdf5")]
         subprocess.run([*command, *where], check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -87,9 +88,9 @@ def main(argv: list[str] | None = None) -> int:
         if where:
             held = training_resources()
             context = (work / "runs", int(held.cpus), False, False)
-            list(run_pieces(_train_piece, [config], context=context, on_ray=True, resources=held))
+            list(run_pieces(train_piece, [config], context=context, on_ray=True, resources=held))
         else:
-            _train_piece((work / "runs", None, False, False), config)
+            train_piece((work / "runs", None, False, False), config)
 
     def row(name: str, local, on_ray) -> None:
         """The fastest of --repeats alternating measurements of each side."""

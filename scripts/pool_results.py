@@ -23,8 +23,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from veragmil_suite.evaluation.agents import EpisodeRecord
-from veragmil_suite.evaluation.reporting import EvaluationResult
-from veragmil_suite.study.pipeline import write_seed_tables
+from veragmil_suite.evaluation.reporting import EvaluationResult, write_seed_tables
 
 # the evaluation settings two results.json must share for their episodes to be comparable
 SHARED_SETTINGS = ("foods", "episodes", "seed", "horizon", "robot", "success_hold_s", "env_kwargs", "versions")

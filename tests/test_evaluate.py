@@ -267,7 +267,7 @@ def test_checkpoint_agent_rolls_out_on_the_evaluated_food(tmp_path):
     """A tiny BC checkpoint trained on pasta, evaluated on peas with the expert, the same seeds."""
     from helpers.tiny_dataset import record_tiny_dataset
 
-    from veragmil_suite.study.pipeline import train_checkpoint, training_config
+    from veragmil_suite.study.training import train_checkpoint, training_config
 
     dataset = record_tiny_dataset(str(tmp_path / "tiny.hdf5"), episodes=2, steps=20, valid_episodes=1)
     config = training_config("bc", Path(dataset), tmp_path / "runs", "tiny_bc", epochs=1, steps_per_epoch=3)

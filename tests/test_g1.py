@@ -12,7 +12,7 @@ import robosuite
 from veragmil_suite.controllers.scoop_config import load_scoop_controller_config
 from veragmil_suite.models import humanoid
 from veragmil_suite.scripts.measure_expert import run_expert_episode
-from veragmil_suite.study.pipeline import PipelineSettings
+from veragmil_suite.study.settings import PipelineSettings
 
 LIGHT = dict(food="pasta", n_grains=12, pile_variants=1)
 
@@ -84,7 +84,9 @@ def test_recording_training_and_evaluation_run_on_g1_data(tmp_path):
     from veragmil_suite.data.recording import open_dataset
     from veragmil_suite.evaluation.evaluate import evaluate
     from veragmil_suite.scripts import collect_human_demonstrations as collect
-    from veragmil_suite.study.pipeline import StageError, record_food, train_checkpoint, training_config
+    from veragmil_suite.study.record import record_food
+    from veragmil_suite.study.settings import StageError
+    from veragmil_suite.study.training import train_checkpoint, training_config
 
     data = tmp_path / "g1.hdf5"
     argv = ["--device", "scripted", "--robot", "G1FixedLowerBody", "--food", "pasta", "--n-grains", "20"]

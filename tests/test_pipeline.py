@@ -14,7 +14,9 @@ import h5py
 import pytest
 from helpers.output import warning_lines
 
-from veragmil_suite.study.pipeline import PipelineSettings, StageError, record_food, training_config
+from veragmil_suite.study.record import record_food
+from veragmil_suite.study.settings import PipelineSettings, StageError
+from veragmil_suite.study.training import training_config
 from veragmil_suite.utils.asset_paths import config_path
 
 BIN = Path(sys.executable).parent
@@ -121,8 +123,7 @@ def test_observation_sets_name_their_runs_and_columns_and_the_default_set_keeps_
 
 def test_the_seed_table_gives_each_seeds_rate_and_their_mean_and_range():
     from veragmil_suite.evaluation.agents import EpisodeRecord
-    from veragmil_suite.evaluation.reporting import EvaluationResult
-    from veragmil_suite.study.pipeline import seed_markdown, seed_spread
+    from veragmil_suite.evaluation.reporting import EvaluationResult, seed_markdown, seed_spread
 
     def episodes(agent, food, successes, n=4):
         common = dict(grains_spilled=0, spilled_volume_cm3=0.0, completion_time_s=9.0, steps=200, end_reason="",
@@ -335,7 +336,7 @@ def test_a_study_of_other_foods_leaves_another_studys_merged_dataset_alone(tmp_p
     before the study refused)."""
     from helpers.recording import synthetic_episode, synthetic_writer
 
-    from veragmil_suite.study.pipeline import merge_profile_dataset
+    from veragmil_suite.study.record import merge_profile_dataset
 
     out = tmp_path / "study"
     foods = [out / "data" / "expert" / f"{food}.hdf5" for food in ("pasta", "peas")]

@@ -294,7 +294,7 @@ def _profiles() -> list[str]:
 
 
 def _algos() -> list[str]:
-    from veragmil_suite.study.pipeline import ALGO_CONFIGS
+    from veragmil_suite.study.settings import ALGO_CONFIGS
 
     return sorted(ALGO_CONFIGS)
 

@@ -14,7 +14,7 @@ import sys
 
 from veragmil_suite.scripts.cli import Parser, command
 from veragmil_suite.scripts.study import INTERRUPTED, add_pipeline_arguments, run
-from veragmil_suite.study.pipeline import PipelineSettings
+from veragmil_suite.study.settings import PipelineSettings
 from veragmil_suite.utils.asset_paths import pretrained_checkpoint
 
 # BC trained by veragmil-study on 30 noise-injected expert demos per training food for 50k gradient steps

@@ -1,0 +1,150 @@
+"""The study's training stage: a robomimic config per run from configs/json, and training runs that resume or are
+skipped when complete.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from pathlib import Path
+
+from veragmil_suite.learning.observation_sets import (
+    with_observation_set,
+)
+from veragmil_suite.study.logged_run import TRAINING_PROGRESS, LogProgress, console, run_logged
+from veragmil_suite.study.settings import ALGO_CONFIGS, ROBOMIMIC_TORCH_THREADS, StageError
+from veragmil_suite.utils.asset_paths import config_path
+from veragmil_suite.utils.distributed import Resources
+
+
+def training_config(
+    algo: str,
+    dataset: Path,
+    output_dir: Path,
+    name: str,
+    epochs: int,
+    steps_per_epoch: int,
+    seed: int = 1,
+    filter_key: str | None = None,
+    save_epochs: list[int] | None = None,
+    obs_set: str | None = None,
+) -> dict:
+    """Our stock config of ``algo`` (configs/json) shortened to ``epochs`` x ``steps_per_epoch`` gradient steps,
+    trained on the demos of ``filter_key`` (all when None), with the low-dim observations of ``obs_set``
+    (veragmil_suite.learning.observation_sets; None: the config's own).
+
+    Rollouts during training are off (the evaluation scores checkpoints on every food afterwards); the last epoch
+    and ``save_epochs`` are saved.
+    """
+    if algo not in ALGO_CONFIGS:
+        raise ValueError(f"unknown algorithm {algo!r}; accepted: {sorted(ALGO_CONFIGS)}")
+    with open(config_path(ALGO_CONFIGS[algo])) as f:
+        config = json.load(f)
+    experiment = config["experiment"]
+    experiment.update(name=name, epoch_every_n_steps=steps_per_epoch, validate=False, render_video=False)
+    experiment["rollout"]["enabled"] = False
+    experiment["save"].update(enabled=True, every_n_epochs=epochs, on_best_rollout_success_rate=False)
+    experiment["save"]["epochs"] = sorted(set(save_epochs or []) - {epochs})
+    config["train"].update(data=str(dataset), output_dir=str(output_dir), num_epochs=epochs, seed=seed)
+    config["train"]["hdf5_filter_key"] = filter_key
+    return with_observation_set(config, obs_set) if obs_set is not None else config
+
+
+def _checkpoints(config: dict) -> dict[int, Path]:
+    """The saved checkpoints of a training run by epoch (its newest run folder)."""
+    name = config["experiment"]["name"]
+    runs = sorted(Path(config["train"]["output_dir"]).glob(f"{name}/*/models"), key=lambda p: p.stat().st_mtime)
+    if not runs:
+        return {}
+    return {int(p.stem.split("_")[-1]): p for p in runs[-1].glob("model_epoch_*.pth")}
+
+
+def _without_save_epochs(config: dict) -> dict:
+    """The config less its extra checkpoint epochs, which change what is saved, not what is trained."""
+    out = json.loads(json.dumps(config))
+    if isinstance(out, dict):
+        out.get("experiment", {}).get("save", {}).pop("epochs", None)
+    return out
+
+
+def finished_training(config: dict, work_dir: Path) -> dict[int, Path] | None:
+    """
+    The checkpoints by epoch of a finished run of this config that holds every checkpoint asked for; None when it
+    is to be trained.
+
+    Raises:
+        StageError: [the run's folder holds another config]
+    """
+    config_file = Path(work_dir) / f"{config['experiment']['name']}.json"
+    if not config_file.exists():
+        return None
+    held = json.loads(config_file.read_text())
+    if _without_save_epochs(held) != _without_save_epochs(config):
+        name = config["experiment"]["name"]
+        raise StageError(f"{config_file} holds another config for {name}; use another output directory")
+    found = _checkpoints(config)
+    wanted = {int(config["train"]["num_epochs"]), *config["experiment"]["save"].get("epochs", [])}
+    return found if wanted <= set(found) else None
+
+
+def train_checkpoint(
+    config: dict,
+    work_dir: Path,
+    say=print,
+    torch_threads: int | None = None,
+    progress: bool = False,
+    echo: bool = False,
+) -> tuple[dict[int, Path], float | None]:
+    """
+    Trains with veragmil-train (with ``torch_threads`` torch threads when given, else $VERAGMIL_TORCH_THREADS or
+    robomimic's 2; with ``progress``, a bar of its epochs, and with ``echo`` robomimic's output) unless a finished
+    run of the same config holding every checkpoint asked for is there; returns the checkpoints by epoch and the
+    wall time (None when skipped).
+
+    Raises:
+        StageError: [training failed or wrote no last checkpoint, or the run's folder holds another config]
+    """
+    work_dir = Path(work_dir)
+    name = config["experiment"]["name"]
+    config_file = work_dir / f"{name}.json"
+    epochs = int(config["train"]["num_epochs"])
+    wanted = {epochs, *config["experiment"]["save"].get("epochs", [])}
+    found = finished_training(config, work_dir)
+    if found is not None:
+        say(f"skipping training {name}: its checkpoints are there ({found[epochs].parent})")
+        return found, None
+    if config_file.exists():
+        # killed, or saved at other epochs: train again, saving both
+        held = json.loads(config_file.read_text())
+        saved = set(held["experiment"]["save"].get("epochs", [])) | set(config["experiment"]["save"]["epochs"])
+        config = json.loads(json.dumps(config))
+        config["experiment"]["save"]["epochs"] = sorted(saved - {epochs})
+        shutil.rmtree(Path(config["train"]["output_dir"]) / name, ignore_errors=True)
+    config_file.write_text(json.dumps(config, indent=4))
+    environ = {}
+    if torch_threads is not None:
+        environ = {"VERAGMIL_TORCH_THREADS": str(torch_threads), "OMP_NUM_THREADS": str(torch_threads)}
+    command = [*console("veragmil-train"), "--config", str(config_file)]
+    bar = LogProgress(epochs, TRAINING_PROGRESS, name, "epoch", echo) if progress else None
+    seconds = run_logged(command, work_dir / f"{name}.log", f"training {name}", environ=environ, progress=bar)
+    found = _checkpoints(config)
+    if not wanted <= set(found):
+        raise StageError(f"training {name} wrote no last checkpoint under {config['train']['output_dir']}/{name}")
+    return found, seconds
+
+
+def train_piece(context: tuple[Path, int | None, bool, bool], config: dict) -> tuple[dict[int, Path], float | None]:
+    """A training run as a piece (veragmil_suite.utils.distributed): ``context`` is (work_dir, torch threads, whether to
+    show a progress bar, whether to show robomimic's output)."""
+    work_dir, threads, progress, echo = context
+    return train_checkpoint(config, work_dir, say=lambda _: None, torch_threads=threads, progress=progress, echo=echo)
+
+
+def training_resources() -> Resources:
+    """What a training run holds on a Ray node: a CPU per torch thread ($VERAGMIL_TORCH_THREADS, else robomimic's
+    2), and a GPU when the cluster has one (robomimic trains on it)."""
+    from veragmil_suite.utils.distributed import cluster_resources
+
+    threads = int(os.environ.get("VERAGMIL_TORCH_THREADS") or ROBOMIMIC_TORCH_THREADS)
+    return Resources(cpus=threads, gpus=1 if cluster_resources().get("GPU", 0) >= 1 else 0)
