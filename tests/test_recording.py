@@ -8,6 +8,7 @@ import subprocess
 import sys
 import textwrap
 import xml.etree.ElementTree as ET
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -164,6 +165,16 @@ def test_append_continues_numbering_and_drops_an_interrupted_write(tmp_path):
         assert len(json.loads(data.attrs["attempts"])) == 3
         members = sorted(x.decode() for k in ("train", "valid") for x in f["mask"][k][()])
         assert members == ["demo_0", "demo_1", "demo_2"]
+
+
+def test_a_file_an_earlier_version_wrote_takes_more_demos(tmp_path):
+    """The shipped sample was written before the package moved into role folders: its writer is still ours."""
+    path = tmp_path / "sample.hdf5"
+    path.write_bytes((Path(__file__).resolve().parents[1] / "demos" / "scoop.hdf5").read_bytes())
+    with h5py.File(path, "r") as f:
+        env_args = json.loads(f["data"].attrs["env_args"])
+    with DemoWriter(path, env_args, {"device": "scripted"}) as writer:
+        assert writer.next_index > 0
 
 
 def test_append_refuses_another_setup(tmp_path):

@@ -52,7 +52,8 @@ from veragmil_suite.models.foods import DEFAULT_PHYSICS
 
 ENV_NAME = "ScoopGranular"
 ROBOSUITE_ENV_TYPE = 1  # robomimic's EnvType.ROBOSUITE_TYPE
-WRITER = "veragmil_suite.data.recording"
+# the writer files name (data.attrs["writer"]): a format's name, not a module path, so files of every version append
+WRITER = "veragmil_suite.recording"
 FORMAT_VERSION = 1
 DEMO_PREFIX = "demo_"
 # where older versions wrote a demo before moving it into data/ (a kill left it there): a root group, and before
