@@ -41,7 +41,7 @@ def start_vector(bowl_pos: np.ndarray, eef_pos: np.ndarray) -> np.ndarray:
 
 
 def training_starts(dataset: str, filter_key: str | None) -> np.ndarray:
-    from veragmil_suite.data.recording import open_dataset
+    from veragmil_suite.data.schema import open_dataset
 
     with open_dataset(dataset) as f:
         names = [n.decode() for n in f["mask"][filter_key][:]] if filter_key else list(f["data"])

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import robosuite
 
-from veragmil_suite.data.recording import open_dataset
+from veragmil_suite.data.schema import open_dataset
 from veragmil_suite.scripts import cli, dataset_tools
 from veragmil_suite.scripts import collect_human_demonstrations as collect
 

@@ -11,7 +11,7 @@ import pytest
 from helpers.programs import run_program
 from helpers.recording import CAMERA_SIZE, record_file, tiny_env_kwargs
 
-from veragmil_suite.data.recording import open_dataset
+from veragmil_suite.data.schema import open_dataset
 from veragmil_suite.scripts.dataset_tools import (
     info_main,
     merge_main,

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import robosuite
 
-from veragmil_suite.data.recording import check_schema, demo_names, open_dataset
+from veragmil_suite.data.schema import check_schema, demo_names, open_dataset
 from veragmil_suite.learning import robomimic_compat, robomimic_obs
 from veragmil_suite.models.foods import TRAINING_FOODS
 

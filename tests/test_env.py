@@ -12,7 +12,8 @@ from helpers.env import grain_positions, make_env, pinned_mujoco_version
 from veragmil_suite.controllers.scoop_config import load_scoop_controller_config
 from veragmil_suite.environments import scoop as scoop_module
 from veragmil_suite.environments import settling
-from veragmil_suite.environments.scoop import POST_SCOOP_EEF_ROT, PRE_SCOOP_EEF_ROT, SCOOP_STAGES, StageTracker
+from veragmil_suite.environments.stages import SCOOP_STAGES, StageTracker
+from veragmil_suite.environments.start_pose import POST_SCOOP_EEF_ROT, PRE_SCOOP_EEF_ROT
 from veragmil_suite.learning.robomimic_obs import model_xml
 from veragmil_suite.models.bowl import DEFAULT_BOWL_SHAPE
 from veragmil_suite.models.foods import FOODS

@@ -81,7 +81,7 @@ def test_expert_scoops_pasta_with_the_g1():
 
 
 def test_recording_training_and_evaluation_run_on_g1_data(tmp_path):
-    from veragmil_suite.data.recording import open_dataset
+    from veragmil_suite.data.schema import open_dataset
     from veragmil_suite.evaluation.evaluate import evaluate
     from veragmil_suite.scripts import collect_human_demonstrations as collect
     from veragmil_suite.study.record import record_food

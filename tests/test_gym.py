@@ -13,7 +13,8 @@ from helpers.env import make_env as make_robosuite_env
 
 import veragmil_suite
 from veragmil_suite.controllers.scoop_config import load_scoop_controller_config
-from veragmil_suite.data.recording import DemoWriter, check_schema, demo_names, env_meta, open_dataset, provenance
+from veragmil_suite.data.schema import check_schema, demo_names, env_meta, open_dataset, provenance
+from veragmil_suite.data.writer import DemoWriter
 from veragmil_suite.devices.expert import ScriptedScooper
 from veragmil_suite.environments.episode import SUCCESS_HOLD_S
 

@@ -16,14 +16,9 @@ import pytest
 from helpers.env import pinned_mujoco_version
 from helpers.recording import CAMERA_SIZE, make_env, record_file, synthetic_episode, synthetic_writer, tiny_env_kwargs
 
-from veragmil_suite.data.recording import (
-    DatasetError,
-    DemoWriter,
-    EpisodeRecorder,
-    env_meta,
-    open_dataset,
-    provenance,
-)
+from veragmil_suite.data.recording import EpisodeRecorder
+from veragmil_suite.data.schema import DatasetError, env_meta, open_dataset, provenance
+from veragmil_suite.data.writer import DemoWriter
 from veragmil_suite.evaluation.agents import parse_spec
 from veragmil_suite.learning import robomimic_obs
 from veragmil_suite.scripts.dataset_tools import info_main, split_main

@@ -15,7 +15,7 @@ import robosuite
 from helpers.programs import run_program
 from helpers.recording import CAMERA_SIZE, record_file, tiny_env_kwargs
 
-from veragmil_suite.data.recording import VARIANTS_KEY, demo_names
+from veragmil_suite.data.schema import VARIANTS_KEY, demo_names
 from veragmil_suite.learning import robomimic_compat
 from veragmil_suite.scripts.dataset_tools import info_main
 

@@ -19,7 +19,7 @@ from helpers.recording import synthetic_episode, synthetic_writer
 
 from veragmil_suite.data import safe_hdf5
 from veragmil_suite.data.datasets import clean_dataset, dataset_summary
-from veragmil_suite.data.recording import DatasetError, demo_names, open_dataset
+from veragmil_suite.data.schema import DatasetError, demo_names, open_dataset
 from veragmil_suite.scripts import dataset_tools
 
 BIN = Path(sys.executable).parent

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from helpers.vr import make_lift_env, run_loop
 
-from veragmil_suite.data.recording import open_dataset
+from veragmil_suite.data.schema import open_dataset
 from veragmil_suite.devices import VRDevice, VRServerOptions
 
 BROWSER_DIR = Path(__file__).resolve().parent / "browser"

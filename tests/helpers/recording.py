@@ -10,7 +10,9 @@ import robosuite
 
 import veragmil_suite  # noqa: F401
 from veragmil_suite.controllers.scoop_config import load_scoop_controller_config
-from veragmil_suite.data.recording import DemoWriter, EpisodeRecorder, env_meta, provenance
+from veragmil_suite.data.recording import EpisodeRecorder
+from veragmil_suite.data.schema import env_meta, provenance
+from veragmil_suite.data.writer import DemoWriter
 from veragmil_suite.devices.expert import ScriptedScooper
 
 CAMERA_SIZE = 32

@@ -15,24 +15,21 @@ import h5py
 import numpy as np
 
 from veragmil_suite.data import safe_hdf5
-from veragmil_suite.data.recording import (
+from veragmil_suite.data.schema import (
     COMPATIBLE_KWARGS,
     DamagedDataset,
     DatasetError,
-    action_limit,
     check_demo,
     demo_names,
-    demo_problems,
     env_kwargs_variants,
     interrupted_writes,
     open_dataset,
     refresh_summary,
     remove_interrupted_writes,
     split_demos,
-    updated_file,
-    write_lock,
     write_masks,
 )
+from veragmil_suite.data.writer import action_limit, demo_problems, updated_file, write_lock
 from veragmil_suite.learning import robomimic_obs
 from veragmil_suite.models.foods import with_recorded_physics
 

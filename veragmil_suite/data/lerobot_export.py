@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from veragmil_suite.data.recording import METRIC_KEYS, DatasetError, demo_names, open_dataset
+from veragmil_suite.data.schema import METRIC_KEYS, DatasetError, demo_names, open_dataset
 
 STATE_PREFIX = "robot0_"
 ENVIRONMENT_STATE_KEY = "object"
@@ -47,7 +47,7 @@ VIDEO_CODECS = ("libsvtav1", "h264", "hevc")
 # SVT-AV1's own log threshold ($SVT_LOG): errors only. Its info banner of settings per video and its warnings
 # (lerobot-dataset's preset 12 "mapped to" 10; no thread priorities in a container) say nothing to act on.
 SVT_LOG_ERRORS = "1"
-# each metric of recording.METRIC_KEYS as a LeRobot dtype
+# each metric of schema.METRIC_KEYS as a LeRobot dtype
 METRIC_DTYPES = {
     "success": "bool",
     "grains_in_spoon": "int64",

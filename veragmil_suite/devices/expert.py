@@ -18,7 +18,7 @@ import numpy as np
 import robosuite.utils.transform_utils as T
 
 from veragmil_suite.controllers.scoop_config import osc_speed_per_offset
-from veragmil_suite.environments.scoop import POST_SCOOP_EEF_ROT, PRE_SCOOP_EEF_ROT
+from veragmil_suite.environments.start_pose import POST_SCOOP_EEF_ROT, PRE_SCOOP_EEF_ROT
 from veragmil_suite.utils.kinematics import align_heading
 
 # While lifting and carrying, the spoon's tip is raised a little past level, as people do, so the load rests against

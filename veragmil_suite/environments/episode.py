@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from veragmil_suite.environments.scoop import StageTracker
+from veragmil_suite.environments.stages import StageTracker
 
 # how long success must hold to end an episode (veragmil-collect's default --success-hold, veragmil-evaluate's rule)
 SUCCESS_HOLD_S = 1.0

@@ -117,7 +117,7 @@ def parse_spec(spec: str) -> AgentSpec:
         path = spec[len("dataset:") :]
         if not Path(path).is_file():
             raise ValueError(f"dataset {path!r} not found (agent {spec!r}); an agent is {SPEC_HELP}")
-        from veragmil_suite.data.recording import open_dataset
+        from veragmil_suite.data.schema import open_dataset
 
         try:
             open_dataset(path).close()
@@ -353,7 +353,7 @@ def env_metadata(path: str) -> dict:
 
 def dataset_episodes(name: str, path: str, foods: list[str]) -> list[EpisodeRecord]:
     """A recorded dataset's demos as episode records (their stored metrics), for the foods evaluated."""
-    from veragmil_suite.data.recording import demo_names, open_dataset
+    from veragmil_suite.data.schema import demo_names, open_dataset
 
     out = []
     with open_dataset(path) as f:

@@ -72,7 +72,7 @@ def summarize(episodes: list[EpisodeRecord]) -> dict[tuple[str, str], dict]:
 
 def _stage_columns(rows: list[EpisodeRecord]) -> list[str]:
     """SCOOP_STAGES, and "-" for recorded demos that predate stage labels (only when there are any)."""
-    from veragmil_suite.environments.scoop import SCOOP_STAGES
+    from veragmil_suite.environments.stages import SCOOP_STAGES
 
     return [*SCOOP_STAGES] + ([MISSING] if any(r.stage not in SCOOP_STAGES for r in rows) else [])
 

@@ -210,9 +210,7 @@ def _create_env_from_metadata(create):
     @functools.wraps(create)
     def create_env_from_metadata(env_meta, *args, **kwargs):
         env_kwargs = {k: v for k, v in env_meta.get("env_kwargs", {}).items() if k != "env_name"}
-        from veragmil_suite.data.recording import (
-            ENV_NAME,  # recording imports robosuite, which this module patches first
-        )
+        from veragmil_suite.data.schema import ENV_NAME  # schema imports robosuite, which this module patches first
 
         if env_meta.get("env_name") == ENV_NAME:
             env_kwargs = with_recorded_physics(env_kwargs)
@@ -296,7 +294,7 @@ def _make_robosuite_env(env_name: str, kwargs: dict):
 
 def _with_dataset_variants(get_env_metadata):
     """robomimic's get_env_metadata_from_dataset, plus the dataset's env_kwargs variants as its demos' own env_args
-    give them (veragmil_suite.data.recording.env_kwargs_variants), or as the file lists them when no demo has its
+    give them (veragmil_suite.data.schema.env_kwargs_variants), or as the file lists them when no demo has its
     own."""
     if getattr(get_env_metadata, "_adds_variants", False):
         return get_env_metadata
@@ -305,7 +303,7 @@ def _with_dataset_variants(get_env_metadata):
     def get_env_metadata_from_dataset(dataset_path, *args, **kwargs):
         import h5py
 
-        from veragmil_suite.data.recording import VARIANTS_KEY, demo_names, env_kwargs_variants
+        from veragmil_suite.data.schema import VARIANTS_KEY, demo_names, env_kwargs_variants
 
         env_meta = get_env_metadata(dataset_path, *args, **kwargs)
         with h5py.File(os.path.expanduser(dataset_path), "r") as f:
@@ -333,7 +331,7 @@ def _with_variants(create, in_turn: bool = True):
     def create_with_variants(env_meta, *args, **kwargs):
         from robomimic.envs.env_robosuite import EnvRobosuite
 
-        from veragmil_suite.data.recording import VARIANTS_KEY
+        from veragmil_suite.data.schema import VARIANTS_KEY
 
         env = create(env_meta, *args, **kwargs)
         if isinstance(env, EnvRobosuite):
@@ -391,7 +389,7 @@ def _serialize_with_variants(serialize):
 
     @functools.wraps(serialize)
     def serialize_with_variants(self):
-        from veragmil_suite.data.recording import VARIANTS_KEY
+        from veragmil_suite.data.schema import VARIANTS_KEY
 
         meta = serialize(self)
         if getattr(self, "env_kwargs_variants", None):
@@ -440,7 +438,7 @@ def _carry_attributes(source: str, output: str) -> None:
     """
     import h5py
 
-    from veragmil_suite.data.recording import VARIANTS_KEY
+    from veragmil_suite.data.schema import VARIANTS_KEY
 
     with h5py.File(source, "r") as fin, h5py.File(output, "a") as fout:
         data_in, data_out = fin["data"], fout["data"]

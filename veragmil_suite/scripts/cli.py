@@ -41,7 +41,7 @@ class UsageError(Exception):
 
 # errors the handler reports in one line, by class name (importing their modules here would import h5py or Ray)
 EXPECTED_ERRORS = (
-    "veragmil_suite.data.recording.DatasetError",
+    "veragmil_suite.data.schema.DatasetError",
     "veragmil_suite.utils.distributed.RayMissing",
     "veragmil_suite.data.lerobot_export.ExtraNotInstalled",
 )
@@ -599,7 +599,7 @@ def _checkpoint(path: str) -> None:
 
 
 json_file = InputFile("JSON file", check=_json_value)
-# our datasets' content is checked where they are opened (veragmil_suite.data.recording.open_dataset: one DatasetError
+# our datasets' content is checked where they are opened (veragmil_suite.data.schema.open_dataset: one DatasetError
 # line naming what is wrong), which also knows what an interrupted write left
 dataset = InputFile("dataset file")
 robomimic_dataset = InputFile("robomimic dataset (HDF5)", check=_robomimic_hdf5)

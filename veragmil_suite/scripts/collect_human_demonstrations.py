@@ -525,7 +525,7 @@ def _worker_attempt(context: tuple, seed: int):
     import robosuite
 
     import veragmil_suite  # noqa: F401
-    from veragmil_suite.data import recording
+    from veragmil_suite.data.recording import EpisodeRecorder
     from veragmil_suite.environments import settling
 
     args, env_kwargs, piles = context
@@ -536,7 +536,7 @@ def _worker_attempt(context: tuple, seed: int):
             _WORKER["env"].close()
         env = robosuite.make("ScoopGranular", **env_kwargs, has_renderer=False, seed=args.seed)
         operator = ScriptedOperator(env, args.profile, args.seed)
-        _WORKER.update(env=env, recorder=recording.EpisodeRecorder(env), operator=operator, settings=settings)
+        _WORKER.update(env=env, recorder=EpisodeRecorder(env), operator=operator, settings=settings)
     return record_attempt(_WORKER["env"], _WORKER["recorder"], _WORKER["operator"], args, seed)
 
 
@@ -601,7 +601,9 @@ def main(args: argparse.Namespace) -> int:
     import robosuite
 
     import veragmil_suite  # noqa: F401  (registers ScoopGranular)
-    from veragmil_suite.data import recording
+    from veragmil_suite.data.recording import EpisodeRecorder
+    from veragmil_suite.data.schema import DatasetError, env_meta, provenance
+    from veragmil_suite.data.writer import DemoWriter
 
     has_display = bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
     render = args.render == "on" or (args.render == "auto" and args.device != "scripted" and has_display)
@@ -612,10 +614,10 @@ def main(args: argparse.Namespace) -> int:
     output = output_path(args)
 
     env_kwargs = env_kwargs_from_args(args)
-    writer = recording.DemoWriter(
+    writer = DemoWriter(
         output,
-        recording.env_meta(env_kwargs),
-        recording.provenance(
+        env_meta(env_kwargs),
+        provenance(
             device=args.device,
             operator=operator_name,
             food=args.food,
@@ -671,7 +673,7 @@ def main(args: argparse.Namespace) -> int:
         except SystemExit:
             writer.close()
             raise
-        recorder = recording.EpisodeRecorder(env)
+        recorder = EpisodeRecorder(env)
         realtime = source == "human" and pace is None
         attempts_iter = local_attempts(env, recorder, operator, args, render, realtime=realtime, pace=pace)
     kept, attempts, results = 0, 0, []
@@ -715,7 +717,7 @@ def main(args: argparse.Namespace) -> int:
                     name = writer.write(episode)
                 else:
                     writer.log_discarded(metrics, attrs=dict(attempt=attempts, end_reason=reason, seed=seed))
-            except recording.DatasetError as e:
+            except DatasetError as e:
                 failed = f"{e}: episode {attempts} (seed {seed}) is not saved; all saved before it are ({kept} here)"
                 break
             if keep:

@@ -21,7 +21,7 @@ def food_seed(seed: int, food: str) -> int:
 
 def _recorded(path: Path) -> dict:
     """What a food's file holds: demos, and the settings it was recorded with."""
-    from veragmil_suite.data.recording import demo_names, open_dataset, seeds_used
+    from veragmil_suite.data.schema import demo_names, open_dataset, seeds_used
 
     with open_dataset(path) as f:
         kwargs = with_recorded_physics(json.loads(f["data"].attrs["env_args"])["env_kwargs"])
@@ -57,7 +57,7 @@ def check_recording(
     Raises:
         StageError: [the file was recorded with other settings, or is not a dataset]
     """
-    from veragmil_suite.data.recording import DatasetError
+    from veragmil_suite.data.schema import DatasetError
 
     path = Path(path)
     if not path.exists():
@@ -167,7 +167,7 @@ def merge_profile_dataset(path: Path, food_files: list[Path], demo_counts: list[
     import h5py
 
     from veragmil_suite.data.datasets import merge_datasets
-    from veragmil_suite.data.recording import updated_file
+    from veragmil_suite.data.writer import updated_file
 
     sources = [str(p) for p in food_files]
     stamp = json.dumps([[s, os.path.getmtime(s)] for s in sources])

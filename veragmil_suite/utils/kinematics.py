@@ -89,3 +89,18 @@ def solve_pose_ik(
         f"no joint configuration reaches {np.round(target_pos, 3)} with the requested orientation "
         f"(residual {np.linalg.norm(err_pos):.4f} m, {np.linalg.norm(err_rot):.4f} rad)"
     )
+
+
+def quat_mul_wxyz(q: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """q * p for one (w, x, y, z) quaternion q and an (n, 4) array p."""
+    w0, x0, y0, z0 = q
+    w1, x1, y1, z1 = p.T
+    return np.stack(
+        [
+            w0 * w1 - x0 * x1 - y0 * y1 - z0 * z1,
+            w0 * x1 + x0 * w1 + y0 * z1 - z0 * y1,
+            w0 * y1 - x0 * z1 + y0 * w1 + z0 * x1,
+            w0 * z1 + x0 * y1 - y0 * x1 + z0 * w1,
+        ],
+        axis=1,
+    )

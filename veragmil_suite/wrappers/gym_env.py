@@ -54,7 +54,7 @@ class ScoopGranularGymEnv(GymWrapper):
         success_hold_s (None or float): seconds success must hold to terminate the episode (the suite's rule);
             None or <= 0: success never terminates it (``is_success`` is then the step's own success)
         record (bool): step through an EpisodeRecorder (``recorder``), so an episode can be written with
-            veragmil_suite.data.recording.DemoWriter (``env_kwargs`` gives its env metadata); an action outside the
+            veragmil_suite.data.writer.DemoWriter (``env_kwargs`` gives its env metadata); an action outside the
             action space is then clipped to it before it is executed (as the controller would clip it) and stored
             clipped: the file holds what the robot applied
         **env_kwargs: ScoopGranular's other arguments (n_grains, horizon, control_freq, camera_names, camera_heights,
@@ -97,7 +97,7 @@ class ScoopGranularGymEnv(GymWrapper):
         if kwargs.get("controller_configs") is None:
             # the env's own default, spelled out: datasets store the controller they were driven with
             kwargs["controller_configs"] = load_scoop_controller_config("OSC_POSE", robot=robots)
-        # the robosuite.make arguments (JSON-serializable with a catalog food): recording.env_meta's input
+        # the robosuite.make arguments (JSON-serializable with a catalog food): schema.env_meta's input
         self.env_kwargs = kwargs
         env = robosuite.make(ScoopGranular.__name__, **kwargs)
         keys = (["object-state"] if env.use_object_obs else []) + [
@@ -114,7 +114,7 @@ class ScoopGranularGymEnv(GymWrapper):
         self.hold = SuccessHold(env.control_freq, success_hold_s)
         self.recorder = None
         if record:
-            from veragmil_suite.data.recording import EpisodeRecorder  # h5py, only when recording
+            from veragmil_suite.data.recording import EpisodeRecorder
 
             self.recorder = EpisodeRecorder(env)
         self.robosuite_obs = self.env.observation_spec()
