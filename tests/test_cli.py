@@ -1,6 +1,6 @@
 """
 Every console program's command line, walked from setup.py: each option takes a kind of value
-(veragmil_suite.scripts.cli), and this table GENERATES its cases from the parsers themselves: every option of every
+(veragmil_suite.utils.cli), and this table GENERATES its cases from the parsers themselves: every option of every
 console program is fed values of the wrong type, out of range, and paths that are missing, a directory, read-only
 or too long, and each must be refused in one line naming the option, exit 2. A program or an option added tomorrow
 is covered the day it is added (a program without cli.command, or an option without a kind, fails here).
@@ -22,7 +22,7 @@ from pathlib import Path
 
 import pytest
 
-from veragmil_suite.scripts import cli
+from veragmil_suite.utils import cli
 
 ROOT = Path(__file__).resolve().parents[1]
 ENTRY_POINTS = dict(re.findall(r'"(veragmil-[\w-]+)=([\w.]+:\w+)"', (ROOT / "setup.py").read_text()))
@@ -215,7 +215,7 @@ def test_every_program_is_built_by_cli_and_every_value_has_a_kind(program):
     parser = parser_of(program)
     assert isinstance(parser, cli.Parser), f"{program}: parser is not cli.Parser (spellings, lists, no abbreviations)"
     untyped = [name_of(a) for a in parser._actions if a.nargs != 0 and not isinstance(a.type, cli.Kind)]
-    assert not untyped, f"{program}: options without a kind of value (veragmil_suite.scripts.cli): {untyped}"
+    assert not untyped, f"{program}: options without a kind of value (veragmil_suite.utils.cli): {untyped}"
 
 
 def test_a_sample_of_each_program_refuses_as_a_real_process(paths):

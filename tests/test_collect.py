@@ -15,8 +15,9 @@ import pytest
 import robosuite
 
 from veragmil_suite.data.schema import open_dataset
-from veragmil_suite.scripts import cli, dataset_tools
 from veragmil_suite.scripts import collect_human_demonstrations as collect
+from veragmil_suite.scripts import dataset_tools
+from veragmil_suite.utils import cli
 
 BIN = Path(sys.executable).parent
 LIGHT = ["--food", "pasta", "--n-grains", "12", "--camera-size", "32"]

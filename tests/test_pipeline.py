@@ -76,8 +76,8 @@ def test_bad_settings_name_the_accepted_values(tmp_path):
 
 
 def test_no_operators_leaves_the_scripted_operators_out_of_the_study():
-    from veragmil_suite.scripts.cli import Parser
     from veragmil_suite.scripts.study import add_pipeline_arguments, settings_from_args
+    from veragmil_suite.utils.cli.parser import Parser
 
     parser = Parser("veragmil-study")
     add_pipeline_arguments(parser, PipelineSettings(output_dir="runs/study"))

@@ -33,7 +33,7 @@ from veragmil_suite.environments.episode import run_until_done
 from veragmil_suite.environments.scoop import MAX_GRAINS_PER_DEFAULT
 from veragmil_suite.models.foods import DEFAULT_PHYSICS, FOODS, TRAINING_FOODS
 from veragmil_suite.models.scoop_task import GRAIN_SLEEP_TOLERANCE
-from veragmil_suite.scripts import cli
+from veragmil_suite.utils import cli
 
 REAL_TIME_STEPS_PER_S = 20.0  # the default 20 Hz control rate
 # the speed issue's goals: at rest, asleep, 0.6x Lift; whole expert episodes of the slowest training food 1.5x (aim

@@ -41,8 +41,9 @@ import time
 import numpy as np
 
 from veragmil_suite.environments.episode import SUCCESS_HOLD_S, run_until_done
-from veragmil_suite.scripts import cli
-from veragmil_suite.scripts.cli import Parser, UsageError, command
+from veragmil_suite.utils import cli
+from veragmil_suite.utils.cli.handler import UsageError, command
+from veragmil_suite.utils.cli.parser import Parser
 from veragmil_suite.utils.distributed import add_ray_argument, check_ray_argument
 
 # robosuite's devices (its collect_human_demonstrations.py), then ours

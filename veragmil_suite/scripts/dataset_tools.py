@@ -23,8 +23,9 @@ from veragmil_suite.data.datasets import (
     replay_demos,
     split_dataset,
 )
-from veragmil_suite.scripts import cli
-from veragmil_suite.scripts.cli import Parser, UsageError, command
+from veragmil_suite.utils import cli
+from veragmil_suite.utils.cli.handler import UsageError, command
+from veragmil_suite.utils.cli.parser import Parser
 from veragmil_suite.utils.rendering import use_headless_rendering
 
 # ---------------------------------------------------------------------------------------------------------------- #

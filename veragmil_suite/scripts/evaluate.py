@@ -18,8 +18,9 @@ import sys
 
 from veragmil_suite.evaluation.agents import ALL_FOODS, DEFAULT_VIDEO_CAMERA, SPEC_HELP, parse_agent_argument
 from veragmil_suite.evaluation.evaluate import evaluate
-from veragmil_suite.scripts import cli
-from veragmil_suite.scripts.cli import Parser, UsageError, command
+from veragmil_suite.utils import cli
+from veragmil_suite.utils.cli.handler import UsageError, command
+from veragmil_suite.utils.cli.parser import Parser
 from veragmil_suite.utils.distributed import add_ray_argument, check_ray_argument
 
 # ScoopGranular arguments this program sets from its own options

@@ -14,8 +14,9 @@ import argparse
 import sys
 
 from veragmil_suite.data.lerobot_export import VIDEO_CODECS, export_lerobot
-from veragmil_suite.scripts import cli
-from veragmil_suite.scripts.cli import Parser, command
+from veragmil_suite.utils import cli
+from veragmil_suite.utils.cli.handler import command
+from veragmil_suite.utils.cli.parser import Parser
 
 PROG = "veragmil-export-lerobot"
 

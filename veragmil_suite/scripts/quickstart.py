@@ -12,10 +12,11 @@ from __future__ import annotations
 import argparse
 import sys
 
-from veragmil_suite.scripts.cli import Parser, command
 from veragmil_suite.scripts.study import INTERRUPTED, add_pipeline_arguments, run
 from veragmil_suite.study.settings import PipelineSettings
 from veragmil_suite.utils.asset_paths import pretrained_checkpoint
+from veragmil_suite.utils.cli.handler import command
+from veragmil_suite.utils.cli.parser import Parser
 
 # BC trained by veragmil-study on 30 noise-injected expert demos per training food for 50k gradient steps
 # (models/checkpoints)

@@ -4,7 +4,7 @@ playback_dataset, dataset_states_to_obs) on our environment, with their own comm
 
 Each one installs the compatibility layer (veragmil_suite.learning.robomimic_compat), which also registers
 ScoopGranular, parses its command line with the script's own parser (robomimic's option names; dashed spellings accepted
-too), each option given a kind of value (veragmil_suite.scripts.cli) so that a bad value, a missing or foreign file is
+too), each option given a kind of value (veragmil_suite.utils.cli) so that a bad value, a missing or foreign file is
 one line and exit 2 before anything runs, then runs the script's ``if __name__ == "__main__":`` block in the script's
 own module on those arguments. A failed run exits non-zero (robomimic's train.py catches its errors and would exit 0)
 and nothing ever waits on a prompt.
@@ -23,8 +23,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from veragmil_suite.learning import robomimic_compat
-from veragmil_suite.scripts import cli
-from veragmil_suite.scripts.cli import UsageError
+from veragmil_suite.utils import cli
+from veragmil_suite.utils.cli.handler import UsageError
 
 SCRIPTS = {
     "train": "robomimic.scripts.train",
@@ -37,7 +37,7 @@ SCRIPTS = {
 
 @dataclass(frozen=True)
 class Script:
-    """A robomimic script as a console program: its name here, and the kind (veragmil_suite.scripts.cli) of each of
+    """A robomimic script as a console program: its name here, and the kind (veragmil_suite.utils.cli) of each of
     its options that takes a value, by robomimic's name for it."""
 
     module: str

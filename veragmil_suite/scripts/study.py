@@ -27,10 +27,11 @@ import time
 
 from veragmil_suite.evaluation.agents import SPEC_HELP, parse_agent_argument
 from veragmil_suite.models.foods import TRAINING_FOODS, UNSEEN_FOODS
-from veragmil_suite.scripts import cli
-from veragmil_suite.scripts.cli import Parser, UsageError, command
 from veragmil_suite.study.pipeline import run_pipeline
 from veragmil_suite.study.settings import PipelineSettings, StageError
+from veragmil_suite.utils import cli
+from veragmil_suite.utils.cli.handler import UsageError, command
+from veragmil_suite.utils.cli.parser import Parser
 from veragmil_suite.utils.distributed import add_ray_argument, check_ray_argument
 
 # Ctrl-C: what is finished stays, and the same command picks up from there

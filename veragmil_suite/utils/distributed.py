@@ -59,7 +59,7 @@ def require_ray() -> None:
 
 def add_ray_argument(parser, pieces: str) -> None:
     """The ``--ray [ADDRESS]`` option of a console program whose ``pieces`` can run as Ray tasks."""
-    from veragmil_suite.scripts import cli
+    from veragmil_suite.utils import cli
 
     parser.add_argument(
         "--ray",

@@ -1,0 +1,100 @@
+"""The handler every console program runs under: an expected error is one line on stderr and exit status 2, Ctrl-C one
+line and 130 (the shell's status for an interrupted program).
+"""
+
+from __future__ import annotations
+
+import argparse
+import errno
+import functools
+import sys
+from collections.abc import Callable
+from typing import Any
+
+from veragmil_suite.utils.cli.files import one_line
+from veragmil_suite.utils.cli.kinds import Kind
+
+
+class UsageError(Exception):
+    """Bad input found after parsing: the handler prints it as one line and exits 2."""
+
+
+# errors the handler reports in one line, by class name (importing their modules here would import h5py or Ray)
+EXPECTED_ERRORS = (
+    "veragmil_suite.data.schema.DatasetError",
+    "veragmil_suite.utils.distributed.RayMissing",
+    "veragmil_suite.data.lerobot_export.ExtraNotInstalled",
+)
+# OSErrors about the user's files, folders, disk or addresses, not about our code
+USER_ERRNOS = {
+    errno.ENOENT,
+    errno.EACCES,
+    errno.EPERM,
+    errno.EISDIR,
+    errno.ENOTDIR,
+    errno.ENAMETOOLONG,
+    errno.EROFS,
+    errno.ENOSPC,
+    errno.EDQUOT,
+    errno.EEXIST,
+    errno.EADDRINUSE,
+    errno.EADDRNOTAVAIL,
+    errno.EAGAIN,
+}
+
+
+def check_option(option: str, value: str, kind: Kind) -> Any:
+    """``kind(value)`` for a value a program derives from its options; UsageError names ``option`` when refused."""
+    try:
+        return kind(value)
+    except argparse.ArgumentTypeError as error:
+        raise UsageError(f"{option}: {error}") from None
+
+
+def _expected(error: BaseException) -> bool:
+    if isinstance(error, UsageError):
+        return True
+    if isinstance(error, OSError):
+        return error.filename is not None or error.errno in USER_ERRNOS
+    return any(f"{c.__module__}.{c.__qualname__}" in EXPECTED_ERRORS for c in type(error).__mro__)
+
+
+def error_line(error: BaseException) -> str:
+    """An expected error as one line: an OSError as 'PATH: reason', anything else as its message."""
+    if isinstance(error, OSError) and error.filename is not None and error.strerror:
+        return f"{error.filename}: {error.strerror}"
+    return one_line(error)
+
+
+def command(build_parser: Callable[[], argparse.ArgumentParser], interrupted: str = "interrupted"):
+    """
+    Makes ``run(args) -> int`` a console program's ``main(argv=None) -> int`` (the exit status, also for --help and
+    a value argparse refused): parses ``argv`` with ``build_parser()`` (kept as ``main.build_parser`` for
+    tests/test_cli.py), runs, and turns an expected error
+    (UsageError, our dataset and Ray errors, an OSError about the user's files, disk or addresses) into one line on
+    stderr and exit status 2, and Ctrl-C into one line (``interrupted``) and 130.
+    """
+
+    def decorate(run: Callable[[argparse.Namespace], int | None]) -> Callable[[list[str] | None], int]:
+        @functools.wraps(run)
+        def main(argv: list[str] | None = None) -> int:
+            parser = build_parser()
+            try:
+                args = parser.parse_args(argv)
+            except SystemExit as stop:  # argparse printed --help, or the bad value in one line
+                return stop.code if isinstance(stop.code, int) else (0 if stop.code is None else 2)
+            try:
+                return int(run(args) or 0)
+            except KeyboardInterrupt:
+                print(f"\n{parser.prog}: {interrupted}", file=sys.stderr)
+                return 130
+            except Exception as error:
+                if not _expected(error):
+                    raise
+                print(f"{parser.prog}: {error_line(error)}", file=sys.stderr)
+                return 2
+
+        main.build_parser = build_parser
+        return main
+
+    return decorate

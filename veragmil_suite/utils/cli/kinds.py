@@ -1,0 +1,304 @@
+"""Kinds of value an option takes: argparse types that refuse a bad value in one line naming the option, the value
+and what is accepted (numbers, choices from the catalogs and registries, robots, cameras, controllers).
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import math
+from collections.abc import Callable, Iterable
+from typing import Any
+
+
+class Kind:
+    """An argparse type for one kind of value: ``kind(text)`` is the value, or an ArgumentTypeError saying what is
+    accepted. ``accepted`` describes the values (for messages and --help)."""
+
+    accepted = "a value"
+
+    def __call__(self, text: str) -> Any:
+        raise NotImplementedError
+
+    def refuse(self, text: Any, why: str | None = None) -> argparse.ArgumentTypeError:
+        return argparse.ArgumentTypeError(f"{why or 'must be ' + self.accepted}, got {text!r}")
+
+    def __repr__(self) -> str:  # argparse names a type by its repr in some messages
+        return self.accepted
+
+
+class Integer(Kind):
+    """An integer in [low, high]."""
+
+    def __init__(self, low: int | None = None, high: int | None = None, accepted: str | None = None):
+        self.low, self.high = low, high
+        self.accepted = accepted or _range_text("an integer", low, high)
+
+    def __call__(self, text: str) -> int:
+        try:
+            value = int(str(text).strip())
+        except ValueError:
+            raise self.refuse(text) from None
+        if (self.low is not None and value < self.low) or (self.high is not None and value > self.high):
+            raise self.refuse(value)
+        return value
+
+
+class Real(Kind):
+    """A finite number in [low, high] (an end left out where ``open_low`` / ``open_high``)."""
+
+    def __init__(
+        self,
+        low: float | None = None,
+        high: float | None = None,
+        open_low: bool = False,
+        open_high: bool = False,
+        accepted: str | None = None,
+    ):
+        self.low, self.high, self.open_low, self.open_high = low, high, open_low, open_high
+        if accepted is None:
+            lo = "" if low is None else f"{'(' if open_low else '['}{low:g}"
+            hi = "" if high is None else f"{high:g}{')' if open_high else ']'}"
+            accepted = f"a finite number in {lo or '(-inf'}, {hi or 'inf)'}"
+        self.accepted = accepted
+
+    def __call__(self, text: str) -> float:
+        try:
+            value = float(str(text).strip())
+        except ValueError:
+            raise self.refuse(text) from None
+        if not math.isfinite(value) or not self.contains(value):
+            raise self.refuse(text)
+        return value
+
+    def contains(self, value: float) -> bool:
+        low_ok = self.low is None or (value > self.low if self.open_low else value >= self.low)
+        high_ok = self.high is None or (value < self.high if self.open_high else value <= self.high)
+        return low_ok and high_ok
+
+
+def _range_text(what: str, low, high) -> str:
+    if low == 1 and high is None:
+        return f"a positive {what.split()[-1]}"
+    if low == 0 and high is None:
+        return f"a non-negative {what.split()[-1]}"
+    if high is None:
+        return f"{what} of at least {low}"
+    return f"{what} in [{low}, {high}]"
+
+
+class Choice(Kind):
+    """One of a set of names (given, or produced by a function called at first use, so that building a parser
+    imports nothing heavy)."""
+
+    def __init__(self, what: str, values: Iterable[str] | Callable[[], Iterable[str]]):
+        self.what = what
+        self._values = values
+
+    @functools.cached_property
+    def values(self) -> list[str]:
+        values = self._values() if callable(self._values) else self._values
+        return [str(v) for v in values]
+
+    @property
+    def accepted(self) -> str:
+        return f"{self.what}, one of: {', '.join(self.values)}"
+
+    def __call__(self, text: str) -> str:
+        if text not in self.values:
+            raise argparse.ArgumentTypeError(f"unknown {self.what} {text!r}; accepted: {', '.join(self.values)}")
+        return text
+
+
+class Text(Kind):
+    """Free text on one line, not empty (a name, a label)."""
+
+    def __init__(self, accepted: str = "non-empty text on one line"):
+        self.accepted = accepted
+
+    def __call__(self, text: str) -> str:
+        if not str(text).strip() or "\n" in text or "\r" in text:
+            raise self.refuse(text)
+        return text
+
+
+class RayAddress(Kind):
+    """Where Ray runs: a cluster's head (host:port, ray://host:port, auto), or empty for this machine (what --ray
+    alone gives)."""
+
+    accepted = "a Ray address (host:port, ray://host:port or auto), or nothing for this machine"
+
+    def __call__(self, text: str) -> str:
+        if any(c.isspace() for c in str(text)):
+            raise self.refuse(text)
+        return text
+
+
+class Boolean(Kind):
+    """true or false (also yes/no, on/off, 1/0), for robosuite's options that take a bool as a value."""
+
+    accepted = "true or false"
+    WORDS = {"true": True, "yes": True, "on": True, "1": True, "false": False, "no": False, "off": False, "0": False}
+
+    def __call__(self, text: str) -> bool:
+        value = self.WORDS.get(str(text).strip().lower())
+        if value is None:
+            raise self.refuse(text)
+        return value
+
+
+class ListOf(Kind):
+    """A list of another kind: the option takes several values, and a value may hold several separated by commas."""
+
+    def __init__(self, item: Kind):
+        self.item = item
+        self.accepted = f"{item.accepted}; several, separated by spaces or commas"
+
+    def __call__(self, text: str) -> list:
+        parts = str(text).split(",")
+        if any(not p.strip() for p in parts):
+            raise argparse.ArgumentTypeError(f"an empty item in {text!r}; items are {self.item.accepted}")
+        return [self.item(p.strip()) for p in parts]
+
+
+class KeyValue(Kind):
+    """``KEY=VALUE`` with KEY and VALUE of their own kinds, as a (key, value) pair."""
+
+    def __init__(self, key: Kind, value: Kind, metavar: str):
+        self.key, self.value, self.metavar = key, value, metavar
+        self.accepted = f"{metavar} with {metavar.split('=')[0]} {key.accepted} and {metavar.split('=')[1]} " + (
+            value.accepted
+        )
+
+    def __call__(self, text: str) -> tuple:
+        key, sep, value = str(text).partition("=")
+        if not sep:
+            raise self.refuse(text)
+        try:
+            return self.key(key.strip()), self.value(value.strip())
+        except argparse.ArgumentTypeError as error:
+            raise argparse.ArgumentTypeError(f"{text!r}: {error}") from None
+
+
+count = Integer(1)  # episodes, demos, steps, pixels, processes
+count_or_zero = Integer(0)  # a count that may be none
+seed = Integer(0, 2**32 - 1, accepted="a seed in [0, 4294967295]")  # numpy's range
+fraction_below_one = Real(0.0, 1.0, open_high=True)  # a validation share: some demos must be left to train on
+positive = Real(0.0, open_low=True)  # a scale, a frame rate, a time constant
+non_negative = Real(0.0)  # a duration that may be zero
+any_number = Real()
+
+
+class ControlFreq(Kind):
+    """A control rate (Hz) the task runs at the physics step: at least the task's MIN_CONTROL_FREQ_HZ, and a whole
+    number of physics steps per control period."""
+
+    @property
+    def accepted(self) -> str:
+        from veragmil_suite.environments.scoop import MIN_CONTROL_FREQ_HZ
+
+        return f"a control rate in Hz of at least {MIN_CONTROL_FREQ_HZ:g}"
+
+    def __call__(self, text: str, timestep_s: float | None = None) -> float:
+        from veragmil_suite.environments.scoop import MIN_CONTROL_FREQ_HZ
+        from veragmil_suite.models.scoop_task import PHYSICS_TIMESTEP_S, check_physics_timestep
+
+        try:
+            value = float(str(text).strip())
+        except ValueError:
+            raise self.refuse(text) from None
+        if not MIN_CONTROL_FREQ_HZ <= value < math.inf:
+            raise self.refuse(text)
+        try:
+            check_physics_timestep(PHYSICS_TIMESTEP_S if timestep_s is None else timestep_s, value)
+        except ValueError as error:
+            raise argparse.ArgumentTypeError(str(error)) from None
+        return int(value) if value == int(value) else value
+
+
+control_freq = ControlFreq()
+
+
+def _foods() -> list[str]:
+    from veragmil_suite.models.foods import FOODS, TRAINING_FOODS, UNSEEN_FOODS
+
+    return list(dict.fromkeys([*TRAINING_FOODS, *UNSEEN_FOODS, *FOODS]))
+
+
+def _profiles() -> list[str]:
+    from veragmil_suite.devices.expert import PROFILES
+
+    return sorted(PROFILES)
+
+
+def _algos() -> list[str]:
+    from veragmil_suite.study.settings import ALGO_CONFIGS
+
+    return sorted(ALGO_CONFIGS)
+
+
+def _observation_sets() -> list[str]:
+    from veragmil_suite.learning.observation_sets import OBSERVATION_SETS
+
+    return sorted(OBSERVATION_SETS)
+
+
+def _physics() -> list[str]:
+    from veragmil_suite.models.foods import PHYSICS
+
+    return list(PHYSICS)
+
+
+def robomimic_algos() -> list[str]:
+    from veragmil_suite.learning import robomimic_compat
+
+    robomimic_compat.install()  # robomimic imports torchvision and mujoco_py, which the compatibility layer bridges
+    from robomimic.config.base_config import REGISTERED_CONFIGS
+
+    return sorted(REGISTERED_CONFIGS)
+
+
+food = Choice("food", _foods)
+profile = Choice("operator profile", _profiles)
+algo = Choice("algorithm", _algos)
+observation_set = Choice("observation set", _observation_sets)
+physics = Choice("physics", _physics)
+robomimic_algo = Choice("robomimic algorithm", robomimic_algos)
+environment = Choice("environment", ["ScoopGranular"])
+
+
+class Robot(Kind):
+    """A robosuite robot that can carry the spoon (veragmil_suite.models.humanoid.check_robot)."""
+
+    accepted = "a robosuite robot that can hold the spoon (XArm7, Panda, ..., G1FixedLowerBody)"
+
+    def __call__(self, text: str) -> str:
+        from veragmil_suite.models.humanoid import check_robot
+
+        try:
+            check_robot(text)
+        except ValueError as error:
+            raise argparse.ArgumentTypeError(str(error)) from None
+        return text
+
+
+robot = Robot()
+
+
+def _cameras() -> list[str]:
+    """The cameras of the task's arena and of its default robot (robosuite prefixes a robot's own with robot0_)."""
+    from robosuite.models.robots import XArm7
+
+    from veragmil_suite.models.arena import ScoopArena
+
+    arena = [c.get("name") for c in ScoopArena().worldbody.iter("camera")]
+    return arena + list(XArm7().cameras)
+
+
+camera = Choice("camera", _cameras)
+
+
+text = Text()
+boolean = Boolean()
+ray_address = RayAddress()
+demo_name = Text("a demo's name, e.g. demo_0")
