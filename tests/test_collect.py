@@ -15,6 +15,7 @@ import pytest
 import robosuite
 
 from veragmil_suite.data.schema import open_dataset
+from veragmil_suite.devices import operators
 from veragmil_suite.scripts import collect_human_demonstrations as collect
 from veragmil_suite.scripts import dataset_tools
 from veragmil_suite.utils import cli
@@ -236,7 +237,7 @@ def test_keep_and_discard_from_the_device(tmp_path, monkeypatch, capsys):
     def operator(args, env):
         nonlocal headset
         headset = FakeHeadset(env, ["discard", "keep"])
-        return collect.TeleopOperator(env, headset, "")
+        return operators.TeleopOperator(env, headset, "")
 
     monkeypatch.setattr(collect, "make_operator", operator)
     argv = ["--device", "vr", *LIGHT, "--cameras", "--episodes", "1", "--operator", "tester", "--output", str(out)]
@@ -270,7 +271,7 @@ def test_vr_allow_emulated_reaches_the_device(flag, allowed):
         ["--device", "vr", *LIGHT, "--vr-port", "0", "--output", "unused.hdf5", *flag]
     )
     env = robosuite.make("ScoopGranular", **collect.env_kwargs_from_args(args), has_renderer=False)
-    operator = collect.make_operator(args, env)
+    operator = operators.make_operator(args, env)
     try:
         assert operator.device.allow_emulated_position is allowed
     finally:
@@ -443,8 +444,8 @@ def test_robosuites_devices_are_built_from_robosuites_own_classes(device, where,
          "--goal-update-mode", "achieved", "--output", "unused.hdf5"]
     )  # fmt: skip
     env = object()
-    operator = collect.make_operator(args, env)
-    assert isinstance(operator, collect.TeleopOperator) and operator.goal_update_mode == "achieved"
+    operator = operators.make_operator(args, env)
+    assert isinstance(operator, operators.TeleopOperator) and operator.goal_update_mode == "achieved"
     assert _Device.built == [(name, env, expected)]
 
 
@@ -455,7 +456,7 @@ def test_a_dualsense_missing_is_one_line_from_robosuites_class(capsys):
     args = collect.build_parser().parse_args(["--device", "dualsense", "--output", "unused.hdf5"])
     env = SimpleNamespace(robots=[SimpleNamespace(arms=["right"])])
     with pytest.raises(cli.UsageError, match="--device dualsense: no DualSense found through hidapi"):
-        collect.make_device(args, env)
+        operators.make_device(args, env)
 
 
 def test_mjgui_needs_robosuites_viewer(tmp_path, monkeypatch, capsys):

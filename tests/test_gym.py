@@ -180,7 +180,7 @@ def test_a_gymnasium_episode_is_recorded_in_our_schema(tmp_path):
 def test_an_action_outside_the_action_space_is_stored_as_the_robot_applied_it(tmp_path):
     """The controller clips its input to the action space; the recorder stores the clipped action it executed,
     so the file holds only valid actions and they replay the recorded states exactly."""
-    from veragmil_suite.data.datasets import replay_demos
+    from veragmil_suite.data.replay import replay_demos
 
     env = make(record=True)
     inner = env.unwrapped

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from helpers.tiny_dataset import SCOOP_KWARGS, default_controller_config
 
-from veragmil_suite.learning import robomimic_compat
+from veragmil_suite.learning import robomimic_compat, robomimic_scripts
 
 robomimic_compat.install()
 
@@ -194,16 +194,16 @@ def test_experiment_dirs_relative_to_cwd_never_prompt_nor_delete(tmp_path, monke
     monkeypatch.chdir(tmp_path)
     monkeypatch.setattr(builtins, "input", lambda *a: pytest.fail("prompted"))
     config = _config("runs")
-    first = robomimic_compat.experiment_dirs(config)
+    first = robomimic_scripts.experiment_dirs(config)
     marker = Path(first[0]) / "kept.txt"
     marker.write_text("earlier run")
-    second = robomimic_compat.experiment_dirs(config)  # same second, same experiment
+    second = robomimic_scripts.experiment_dirs(config)  # same second, same experiment
     assert Path(first[0]).parent != Path(second[0]).parent
     assert marker.read_text() == "earlier run"
     for log_dir, model_dir, video_dir in (first, second):
         assert Path(log_dir).is_relative_to(tmp_path / "runs" / "exp")
         assert Path(log_dir).is_dir() and Path(model_dir).is_dir() and Path(video_dir).is_dir()
-    assert robomimic_compat.experiment_dirs(_config("runs", save=False))[1] is None
+    assert robomimic_scripts.experiment_dirs(_config("runs", save=False))[1] is None
 
 
 def test_train_script_records_errors_and_keeps_the_last_validation_batch():
@@ -221,7 +221,7 @@ def test_train_script_records_errors_and_keeps_the_last_validation_batch():
 
     valid = Split(3, "valid")
     module.train = train
-    outcome = robomimic_compat.prepare_train_script(module)
+    outcome = robomimic_scripts.prepare_train_script(module)
     config = _config("runs")
     with config.values_unlocked():
         config.experiment.validate = True
@@ -247,10 +247,10 @@ def test_torch_threads_of_a_training_run_follow_the_environment(monkeypatch):
     module.train = train
     before, set_num_threads = torch.get_num_threads(), torch.set_num_threads
     monkeypatch.setenv("VERAGMIL_TORCH_THREADS", "1")
-    robomimic_compat.prepare_train_script(module)
+    robomimic_scripts.prepare_train_script(module)
     module.train(_config("runs"), device=None)
     monkeypatch.delenv("VERAGMIL_TORCH_THREADS")
-    robomimic_compat.prepare_train_script(module)
+    robomimic_scripts.prepare_train_script(module)
     module.train(_config("runs"), device=None)
     assert seen == [1, 2] and torch.set_num_threads is set_num_threads
     torch.set_num_threads(before)
@@ -258,7 +258,7 @@ def test_torch_threads_of_a_training_run_follow_the_environment(monkeypatch):
 
 def test_no_prompts_turns_input_into_an_error():
     saved = builtins.input
-    with robomimic_compat.no_prompts():
+    with robomimic_scripts.no_prompts():
         with pytest.raises(RuntimeError, match="never prompt"):
             input("overwrite? (y/n)")
     assert builtins.input is saved

@@ -15,7 +15,7 @@ from PIL import Image
 
 from veragmil_suite.devices import VRDevice, VRServerOptions
 from veragmil_suite.devices.vr import frames as F
-from veragmil_suite.devices.vr.server import CLOSE_FINISHED
+from veragmil_suite.devices.vr.server_options import CLOSE_FINISHED
 
 # real time (staleness, heartbeats, timeouts): make test runs these alone, after the rest (see conftest.py)
 pytestmark = pytest.mark.realtime

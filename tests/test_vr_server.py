@@ -20,7 +20,8 @@ from helpers.vr import Client, controller, pose_message
 
 from veragmil_suite.devices.vr import tls as vr_tls
 from veragmil_suite.devices.vr.protocol import PoseMessage, pack_frame
-from veragmil_suite.devices.vr.server import MAX_WS_FRAME_BYTES, VRServer, VRServerOptions, is_loopback
+from veragmil_suite.devices.vr.server import VRServer
+from veragmil_suite.devices.vr.server_options import MAX_WS_FRAME_BYTES, VRServerOptions, is_loopback
 
 # real time (staleness, heartbeats, timeouts): make test runs these alone, after the rest (see conftest.py)
 pytestmark = pytest.mark.realtime

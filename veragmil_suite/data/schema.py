@@ -34,6 +34,7 @@ import robosuite
 
 import veragmil_suite
 from veragmil_suite.models.foods import DEFAULT_PHYSICS
+from veragmil_suite.utils.canonical import canonical
 
 ENV_NAME = "ScoopGranular"
 ROBOSUITE_ENV_TYPE = 1  # robomimic's EnvType.ROBOSUITE_TYPE
@@ -306,10 +307,6 @@ def split_demos(names: list[str], valid_ratio: float, seed: int = 0) -> tuple[li
     order = np.random.default_rng(seed).permutation(n)
     valid = set(order[:n_valid].tolist())
     return [x for i, x in enumerate(names) if i not in valid], [x for i, x in enumerate(names) if i in valid]
-
-
-def canonical(value) -> str:
-    return json.dumps(value, sort_keys=True)
 
 
 def text(value) -> str:

@@ -141,13 +141,6 @@ class DemoWriter:
         names = demo_names(f)
         return int(names[-1][len(DEMO_PREFIX) :]) + 1 if names else 0
 
-    @property
-    def num_demos(self) -> int:
-        if not self.path.exists():
-            return 0
-        with open_dataset(self.path) as f:
-            return len(demo_names(f))
-
     def write(self, episode: Episode) -> str:
         """
         Append one episode as the next demo_N in one atomic change of the file; returns the demo's name.

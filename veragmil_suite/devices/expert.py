@@ -139,7 +139,6 @@ DRIFT_CORRECTION_MAX_S = 0.5
 DRIFT_RESUME_FRACTION = 0.5
 # coarse input: the largest deflection, in action units, split into ``input_levels`` steps
 QUANTIZE_FULL_SCALE = 0.6
-PHASE_NAMES = tuple(p.name for p in PHASES)
 
 
 @dataclass(frozen=True)

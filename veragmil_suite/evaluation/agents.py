@@ -28,6 +28,7 @@ import numpy as np
 
 from veragmil_suite.environments.episode import SUCCESS_HOLD_S, run_until_done
 from veragmil_suite.models.foods import TRAINING_FOODS, UNSEEN_FOODS
+from veragmil_suite.utils.canonical import canonical
 from veragmil_suite.utils.rendering import use_headless_rendering
 
 ALL_FOODS: tuple[str, ...] = TRAINING_FOODS + UNSEEN_FOODS
@@ -331,7 +332,7 @@ def driver_piles(tasks: list[EpisodeTask]) -> dict:
         kwargs = _env_kwargs(task, bases[target])
         # the seed draws one variant; settled_piles settles them all
         kwargs.update(seed=0, has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False)
-        key = json.dumps(kwargs, sort_keys=True, default=str)
+        key = canonical(kwargs)
         if key in built:
             continue
         built.add(key)

@@ -30,6 +30,7 @@ from veragmil_suite.evaluation.agents import (
     run_task,
 )
 from veragmil_suite.evaluation.reporting import EvaluationResult, json_safe, video_name
+from veragmil_suite.utils.canonical import canonical
 from veragmil_suite.utils.distributed import Resources, WorkerLost, ray_session, run_pieces
 
 
@@ -195,7 +196,7 @@ class Journal:
         parts = [task.spec.kind, task.spec.target, task.food, task.seed, task.horizon, task.env_kwargs]
         if task.video_path:
             parts += [task.video_path, task.video_camera]
-        return json.dumps(parts, sort_keys=True)
+        return canonical(parts)
 
     def get(self, task: EpisodeTask) -> EpisodeRecord | None:
         record = self.records.get(self.key(task))

@@ -77,26 +77,22 @@ robomimic's run_trained_agent.py:
 
 from __future__ import annotations
 
-import builtins
-import contextlib
 import copy
 import functools
 import importlib.machinery
 import importlib.util
-import json
 import os
 import re
 import sys
-import time
 import types
-from collections.abc import Iterator
-from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
 from veragmil_suite.learning import robomimic_obs
+from veragmil_suite.learning.robomimic_scripts import experiment_dirs, normalize_obs, postprocess_without_normalizing
 from veragmil_suite.models.foods import with_recorded_physics
+from veragmil_suite.utils.canonical import canonical
 
 # Schemas of the torchvision ops whose fake kernels torchvision registers even when its compiled library did not
 # load (the same signatures as torchvision's C++ registrations).
@@ -139,14 +135,9 @@ def install() -> None:
     EnvRobosuite.get_state = _env_get_state
     train_utils.get_exp_dir = experiment_dirs
     obs_utils.normalize_obs = normalize_obs
-    Algo.postprocess_batch_for_training = _postprocess_without_normalizing(Algo.postprocess_batch_for_training)
+    Algo.postprocess_batch_for_training = postprocess_without_normalizing(Algo.postprocess_batch_for_training)
     EnvBase.register(EnvWrapper)
     _installed = True
-
-
-# ---------------------------------------------------------------------------------------------------------------- #
-# Imports                                                                                                            #
-# ---------------------------------------------------------------------------------------------------------------- #
 
 
 def _install_mujoco_py_stand_in() -> None:
@@ -188,11 +179,6 @@ def _import_torchvision() -> None:
                 _torchvision_library = torch.library.Library("torchvision", "FRAGMENT")
             _torchvision_library.define(_TORCHVISION_OP_SCHEMAS[name])
             DEFINED_TORCHVISION_OPS.append(name)
-
-
-# ---------------------------------------------------------------------------------------------------------------- #
-# robosuite 1.5 environments                                                                                         #
-# ---------------------------------------------------------------------------------------------------------------- #
 
 
 def _registered_keys(modality: str) -> list[str]:
@@ -287,11 +273,6 @@ def _make_robosuite_env(env_name: str, kwargs: dict):
     return env
 
 
-# ---------------------------------------------------------------------------------------------------------------- #
-# Datasets of several foods                                                                                          #
-# ---------------------------------------------------------------------------------------------------------------- #
-
-
 def _with_dataset_variants(get_env_metadata):
     """robomimic's get_env_metadata_from_dataset, plus the dataset's env_kwargs variants as its demos' own env_args
     give them (veragmil_suite.data.schema.env_kwargs_variants), or as the file lists them when no demo has its
@@ -338,7 +319,7 @@ def _with_variants(create, in_turn: bool = True):
             env.env_kwargs_variants = copy.deepcopy(env_meta.get(VARIANTS_KEY) or [])
             env._variants_in_turn = in_turn
             env._variant_index = -1
-            env._variant_envs = {_canonical(env._init_kwargs): env.env}
+            env._variant_envs = {canonical(env._init_kwargs): env.env}
         return env
 
     create_with_variants._attaches_variants = True
@@ -360,7 +341,7 @@ def _next_variant_at_reset(reset):
                     kwargs.pop(key, None)  # not given in that demo's env_kwargs: the environment's default
                 else:
                     kwargs[key] = value
-            key = _canonical(kwargs)
+            key = canonical(kwargs)
             if key not in self._variant_envs:
                 self._variant_envs[key] = _make_robosuite_env(self._env_name, kwargs)
             self.env = self._variant_envs[key]
@@ -399,72 +380,6 @@ def _serialize_with_variants(serialize):
     return serialize_with_variants
 
 
-def _canonical(value) -> str:
-    return json.dumps(value, sort_keys=True, default=str)
-
-
-def prepare_states_to_obs_script(module: types.ModuleType) -> None:
-    """
-    Patches the namespace of robomimic.scripts.dataset_states_to_obs (imported, not yet run) for one run: its
-    output is written under a temporary name beside it and renamed once complete (a failed run leaves the output
-    as it was), and each demo keeps the input's attributes (see _carry_attributes).
-    """
-    robomimic_states_to_obs = getattr(module.dataset_states_to_obs, "__wrapped__", module.dataset_states_to_obs)
-
-    @functools.wraps(robomimic_states_to_obs)
-    def dataset_states_to_obs(args):
-        folder = os.path.dirname(args.dataset)
-        output = os.path.join(folder, args.output_name)
-        partial = os.path.join(os.path.dirname(output), f".{os.path.basename(output)}.{os.getpid()}.partial")
-        args.output_name = os.path.relpath(partial, folder or ".")
-        try:
-            robomimic_states_to_obs(args)
-            _carry_attributes(args.dataset, partial)
-            os.replace(partial, output)
-            print(f"renamed {os.path.basename(partial)} to {output} (written under that name until complete)")
-        finally:
-            args.output_name = os.path.relpath(output, folder or ".")
-            if os.path.exists(partial):
-                os.remove(partial)
-
-    module.dataset_states_to_obs = dataset_states_to_obs
-
-
-def _carry_attributes(source: str, output: str) -> None:
-    """
-    Gives ``output``'s data group and demos the attributes of ``source``'s that robomimic did not write (provenance,
-    food, metrics, each demo's env_args); a demo's env_args take the env_kwargs robomimic's processing changed or
-    dropped (cameras, reward shaping) from the output's own env_args.
-    """
-    import h5py
-
-    from veragmil_suite.data.schema import VARIANTS_KEY
-
-    with h5py.File(source, "r") as fin, h5py.File(output, "a") as fout:
-        data_in, data_out = fin["data"], fout["data"]
-        before = json.loads(data_in.attrs["env_args"])["env_kwargs"]
-        after = json.loads(data_out.attrs["env_args"])["env_kwargs"]
-        processing = {k: v for k, v in after.items() if _canonical(v) != _canonical(before.get(k))}
-        dropped = before.keys() - after.keys()  # robomimic drops the camera settings when it renders no camera
-        for key, value in data_in.attrs.items():
-            if key not in data_out.attrs:
-                data_out.attrs[key] = value
-        for name in data_out:
-            if name not in data_in:
-                continue
-            attrs_in, attrs_out = data_in[name].attrs, data_out[name].attrs
-            for key, value in attrs_in.items():
-                if key not in attrs_out:
-                    attrs_out[key] = value
-            if "env_args" in attrs_in:
-                meta = json.loads(attrs_in["env_args"])
-                meta.pop(VARIANTS_KEY, None)
-                meta["env_kwargs"].update(processing)
-                for key in dropped:
-                    meta["env_kwargs"].pop(key, None)
-                attrs_out["env_args"] = json.dumps(meta)
-
-
 def _env_step(self, action):
     """Steps the environment; done is the environment's own termination (the horizon is the caller's)."""
     raw, reward, done, info = self.env.step(action)
@@ -479,141 +394,3 @@ def _env_get_observation(self, di=None):
 def _env_get_state(self):
     """The simulation's own XML and flattened state, as reset_to expects them."""
     return dict(model=robomimic_obs.model_xml(self.env), states=np.array(self.env.sim.get_state().flatten()))
-
-
-# ---------------------------------------------------------------------------------------------------------------- #
-# robomimic's train.py                                                                                               #
-# ---------------------------------------------------------------------------------------------------------------- #
-
-
-def experiment_dirs(config, auto_remove_exp_dir: bool = False) -> tuple[str, str | None, str]:
-    """
-    Replaces robomimic's get_exp_dir: <output_dir>/<experiment name>/<timestamp>/{logs, models, videos}.
-
-    A relative output_dir is taken from the working directory (robomimic took it from its own package folder in
-    site-packages). An existing experiment folder is kept and the run goes into a new timestamped folder beside
-    the earlier ones: no prompt, no deletion (auto_remove_exp_dir is accepted and ignored). Runs started in the
-    same second get a numbered suffix.
-
-    Returns:
-        3-tuple: log folder, model folder (None when saving is disabled), video folder
-    """
-    base = os.path.join(os.path.abspath(os.path.expanduser(config.train.output_dir)), config.experiment.name)
-    stamp = time.strftime("%Y%m%d%H%M%S")
-    os.makedirs(base, exist_ok=True)
-    run_dir, suffix = os.path.join(base, stamp), 0
-    while True:
-        try:
-            os.makedirs(run_dir)
-            break
-        except FileExistsError:
-            suffix += 1
-            run_dir = os.path.join(base, f"{stamp}_{suffix}")
-    model_dir = os.path.join(run_dir, "models") if config.experiment.save.enabled else None
-    log_dir = os.path.join(run_dir, "logs")
-    video_dir = os.path.join(run_dir, "videos")
-    for folder in (model_dir, log_dir, video_dir):
-        if folder is not None:
-            os.makedirs(folder)
-    return log_dir, model_dir, video_dir
-
-
-@dataclass
-class TrainOutcome:
-    """What robomimic's train() did: it swallows its errors, so the entry point reads them here."""
-
-    config: object = None
-    error: BaseException | None = None
-
-    @property
-    def failed(self) -> bool:
-        return self.error is not None
-
-
-def prepare_train_script(module: types.ModuleType) -> TrainOutcome:
-    """
-    Patches the namespace of robomimic.scripts.train (imported, not yet run) for one run.
-
-    Its train() is wrapped to record any error (its main() prints the error and returns normally) and to run
-    with $VERAGMIL_TORCH_THREADS torch threads when that is set; its DataLoader keeps the last validation batch
-    and rejects a training split smaller than one batch.
-    """
-    import torch
-
-    outcome = TrainOutcome()
-    robomimic_train = getattr(module.train, "__wrapped__", module.train)
-    threads = os.environ.get("VERAGMIL_TORCH_THREADS")
-
-    @functools.wraps(robomimic_train)
-    def train(config, device):
-        outcome.config = config
-        set_num_threads = torch.set_num_threads
-        if threads:
-            # train() calls torch.set_num_threads(2) itself: that call takes our count instead
-            torch.set_num_threads = lambda _: set_num_threads(int(threads))
-        try:
-            return robomimic_train(config, device=device)
-        except Exception as err:
-            outcome.error = err
-            raise
-        finally:
-            torch.set_num_threads = set_num_threads
-
-    def data_loader(dataset, batch_size=1, drop_last=False, **kwargs):
-        from torch.utils.data import DataLoader
-
-        config = outcome.config
-        if config is not None and config.experiment.validate:
-            valid_key = config.train.hdf5_validation_filter_key
-            if getattr(dataset, "filter_by_attribute", None) == valid_key:
-                drop_last = False
-        if drop_last and len(dataset) < batch_size:
-            raise ValueError(
-                f"the training split holds {len(dataset)} samples, fewer than one batch (train.batch_size = "
-                f"{batch_size}): record more data or lower the batch size"
-            )
-        return DataLoader(dataset, batch_size=batch_size, drop_last=drop_last, **kwargs)
-
-    module.train = train
-    module.DataLoader = data_loader
-    return outcome
-
-
-def normalize_obs(obs_dict: dict, obs_normalization_stats: dict) -> dict:
-    """robomimic's ``ObsUtils.normalize_obs`` (the same stats, of shape (1, ...)) over any leading dimensions of the
-    observations: none (a rollout step), a batch, a batch and time. Keys without statistics (an environment's extra
-    observables in rollouts) pass unchanged; a new dict is returned, the caller's is left as it was."""
-    out = dict(obs_dict)
-    for key in obs_dict.keys() & obs_normalization_stats.keys():
-        mean = np.asarray(obs_normalization_stats[key]["mean"])[0]
-        std = np.asarray(obs_normalization_stats[key]["std"])[0]
-        shape = tuple(obs_dict[key].shape)
-        if shape[len(shape) - mean.ndim :] != mean.shape:
-            raise ValueError(f"observation {key!r} of shape {shape} does not end in its statistics' {mean.shape}")
-        out[key] = (obs_dict[key] - mean) / std
-    return out
-
-
-def _postprocess_without_normalizing(postprocess):
-    """Algo.postprocess_batch_for_training, less its second normalization: the dataset normalized each sample."""
-
-    @functools.wraps(postprocess)
-    def postprocess_batch_for_training(self, batch, obs_normalization_stats):
-        return postprocess(self, batch, obs_normalization_stats=None)
-
-    return postprocess_batch_for_training
-
-
-@contextlib.contextmanager
-def no_prompts() -> Iterator[None]:
-    """Turns any input() robomimic might call into an error: console commands must never wait on a prompt."""
-
-    def refuse(prompt=""):
-        raise RuntimeError(f"robomimic asked interactively ({str(prompt).strip()!r}); veragmil commands never prompt")
-
-    saved = builtins.input
-    builtins.input = refuse
-    try:
-        yield
-    finally:
-        builtins.input = saved

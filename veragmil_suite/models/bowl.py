@@ -79,10 +79,6 @@ class Bowl(CompositeObject):
             for key, value in bits.items():
                 geom.set(key, str(value))
 
-    @property
-    def inner_radius_at_rim(self) -> float:
-        return float(min(self.shape.rim_semi_axes))
-
 
 def _skirt(shape: DishShape, bottom_z: float) -> list[dict]:
     """Vertical outer walls from the table to the rim, closing the overhang under the sloped walls.

@@ -15,14 +15,8 @@ import argparse
 import json
 from pathlib import Path
 
-from veragmil_suite.data.datasets import (
-    clean_dataset,
-    dataset_summary,
-    merge_datasets,
-    render_observations,
-    replay_demos,
-    split_dataset,
-)
+from veragmil_suite.data.datasets import clean_dataset, dataset_summary, merge_datasets, split_dataset
+from veragmil_suite.data.replay import render_observations, replay_demos
 from veragmil_suite.utils import cli
 from veragmil_suite.utils.cli.handler import UsageError, command
 from veragmil_suite.utils.cli.parser import Parser

@@ -22,7 +22,7 @@ import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from veragmil_suite.learning import robomimic_compat
+from veragmil_suite.learning import robomimic_compat, robomimic_scripts
 from veragmil_suite.utils import cli
 from veragmil_suite.utils.cli.handler import UsageError
 
@@ -169,7 +169,7 @@ def _command(module_name: str, prepare: Callable | None = None) -> Callable[[lis
         saved_argv = sys.argv
         sys.argv = [module.__file__]
         try:
-            with robomimic_compat.no_prompts(), cli.parse_args_answering(lambda parser: args):
+            with robomimic_scripts.no_prompts(), cli.parse_args_answering(lambda parser: args):
                 exec(code, module.__dict__)
         finally:
             sys.argv = saved_argv
@@ -181,7 +181,7 @@ def _command(module_name: str, prepare: Callable | None = None) -> Callable[[lis
     return main
 
 
-train_main = _command(SCRIPTS["train"], prepare=robomimic_compat.prepare_train_script)
+train_main = _command(SCRIPTS["train"], prepare=robomimic_scripts.prepare_train_script)
 train_main.__doc__ = "veragmil-train: robomimic's train.py (--config, --algo, --name, --dataset, --debug)."
 run_agent_main = _command(SCRIPTS["run-agent"])
 run_agent_main.__doc__ = "veragmil-run-agent: robomimic's run_trained_agent.py (--agent, --n_rollouts, ...)."
@@ -189,7 +189,7 @@ get_dataset_info_main = _command(SCRIPTS["dataset-info"])
 get_dataset_info_main.__doc__ = "veragmil-robomimic-dataset-info: robomimic's get_dataset_info.py (--dataset, ...)."
 playback_dataset_main = _command(SCRIPTS["playback"])
 playback_dataset_main.__doc__ = "veragmil-robomimic-playback: robomimic's playback_dataset.py (--dataset, ...)."
-dataset_states_to_obs_main = _command(SCRIPTS["states-to-obs"], prepare=robomimic_compat.prepare_states_to_obs_script)
+dataset_states_to_obs_main = _command(SCRIPTS["states-to-obs"], prepare=robomimic_scripts.prepare_states_to_obs_script)
 dataset_states_to_obs_main.__doc__ = "veragmil-robomimic-states-to-obs: robomimic's dataset_states_to_obs.py."
 
 

@@ -37,10 +37,12 @@ from robosuite.devices import Device
 
 from veragmil_suite.devices.vr.clutch import Clutch, Pose
 from veragmil_suite.devices.vr.controls import DEFAULT_BINDINGS, ButtonEvents
+from veragmil_suite.devices.vr.device_status import DeviceStatusMixin
 from veragmil_suite.devices.vr.filters import PoseFilter
 from veragmil_suite.devices.vr.frames import camera_heading, mat_to_quat, mat_to_rotvec, quat_to_mat
 from veragmil_suite.devices.vr.protocol import PoseMessage
-from veragmil_suite.devices.vr.server import VRServer, VRServerOptions
+from veragmil_suite.devices.vr.server import VRServer
+from veragmil_suite.devices.vr.server_options import VRServerOptions
 from veragmil_suite.devices.vr.stream import CameraStream, VRStreamOptions
 
 EPISODE_COMMANDS = ("keep", "discard", "reset")
@@ -48,7 +50,7 @@ SCALE_STEP = 1.25
 SCALE_LIMITS = (0.05, 5.0)
 
 
-class VRDevice(Device):
+class VRDevice(DeviceStatusMixin, Device):
     """A robosuite Device driven by a WebXR headset's controller (see the module docstring).
 
     Args:
@@ -320,12 +322,6 @@ class VRDevice(Device):
         return None if self._target is None else self._target.copy()
 
     @property
-    def message_age(self) -> float | None:
-        """Seconds since the newest pose message arrived (None before the first of this connection)."""
-        recv = self._recv_time
-        return None if recv is None else time.monotonic() - recv
-
-    @property
     def messages_handled(self) -> int:
         """Pose messages handed to the device so far (all connections)."""
         return self._handled
@@ -460,56 +456,3 @@ class VRDevice(Device):
         elif event == "depth":
             self.stream.depth = not self.stream.depth
         self._publish_status(force=True)
-
-    def status(self) -> dict:
-        """What the operator's status line shows."""
-        with self._lock:
-            ages = list(self._pose_ages)[-20:]
-        latency = 1000.0 * float(np.mean(ages)) if ages else None
-        rtt = self.server.rtt_ms
-        c = self._clutch
-        parts = [
-            "CONNECTED" if self.server.connected else "waiting for the headset",
-            *(["controller not tracked"] if self.server.connected and self._ctrl is None else []),
-            "ENGAGED" if c.engaged else ("released (stale)" if self._stale and self.server.connected else "released"),
-            "REC" if self.recording else "not recording",
-            f"scale {c.scale:.2f}" + (" precision" if c.precision else ""),
-            c.mode,
-        ]
-        if latency is not None:
-            parts.append(f"pose {latency:.0f} ms")
-        if rtt is not None:
-            parts.append(f"rtt {rtt:.0f} ms")
-        shown = self.stream.shown_depth_range
-        if self.stream.depth and shown is not None:
-            parts.append(f"depth {shown[0]:.2f}-{shown[1]:.2f} m")
-        if self.progress:
-            parts.append(self.progress)
-        if self.episode_command is not None:
-            parts.append(f"episode: {self.episode_command}")
-        if self.status_message:
-            parts.append(self.status_message)
-        return dict(
-            connected=self.server.connected,
-            engaged=c.engaged,
-            stale=self._stale,
-            recording=self.recording,
-            scale=c.scale,
-            precision=c.precision,
-            mode=c.mode,
-            latency_ms=latency,
-            rtt_ms=rtt,
-            depth=self.stream.depth,
-            depth_range_m=None if self.stream.shown_depth_range is None else list(self.stream.shown_depth_range),
-            recenter=self._recenters,
-            episode=self.episodes,
-            episode_command=self.episode_command,
-            progress=self.progress,
-            text=" | ".join(parts),
-        )
-
-    def _publish_status(self, force: bool = False) -> None:
-        now = time.monotonic()
-        if force or now - self._last_status >= 0.1:
-            self._last_status = now
-            self.server.publish_status(self.status())

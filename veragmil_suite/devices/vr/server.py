@@ -27,18 +27,12 @@ from __future__ import annotations
 
 import asyncio
 import collections
-import hmac
-import ipaddress
 import logging
 import math
-import re
-import secrets
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
-from urllib.parse import urlsplit
 
 from aiohttp import WSCloseCode, WSMsgType, web
 from aiohttp.http_exceptions import HttpProcessingError
@@ -47,7 +41,6 @@ from veragmil_suite.devices.vr import tls as vr_tls
 from veragmil_suite.devices.vr.connections import ConnectionPool
 from veragmil_suite.devices.vr.protocol import (
     MAX_MESSAGE_BYTES,
-    HelloMessage,
     PongMessage,
     PoseMessage,
     ProtocolError,
@@ -55,72 +48,23 @@ from veragmil_suite.devices.vr.protocol import (
     server_message,
     stamp_sent,
 )
+from veragmil_suite.devices.vr.server_access import ServerAccessMixin
+from veragmil_suite.devices.vr.server_options import (
+    CLOSE_FINISHED,
+    CLOSE_SUPERSEDED,
+    CONNECT_RATE,
+    COUNTERS,
+    LOOP_STALL_S,
+    MAX_WS_FRAME_BYTES,
+    PING_INTERVAL_S,
+    SUMMARIZED,
+    SUMMARY_INTERVAL_S,
+    VRServerOptions,
+    is_loopback,
+    new_token,
+)
 
 LOG = logging.getLogger(__name__)
-
-WEB_DIR = Path(__file__).resolve().parent / "web"
-MAX_WS_FRAME_BYTES = 64 * 1024  # larger WebSocket messages are not even buffered: the connection is closed
-TOKEN_ALPHABET = "ABCDEFGHJKLMNPQRSTUVWXYZ23456789"  # no 0/O, 1/I: typed on a headset keyboard
-AUTH_MAX_FAILURES = 5
-AUTH_WINDOW_S = 60.0
-PING_INTERVAL_S = 1.0
-# open TCP connections at most, TLS handshakes included (the page needs one WebSocket and a few HTTP fetches): at it
-# a new connection replaces an older one, so idle sockets cannot use up the process's file descriptors
-MAX_CONNECTIONS = 32
-# seconds a new connection has to finish its TLS handshake and send its first request's headers, and an HTTP
-# keep-alive may idle
-REQUEST_TIMEOUT_S = 10.0
-# new connections a second from one address, after a burst of MAX_CONNECTIONS, on a server open to the network (a
-# page makes a handful on loading, one a second while reconnecting); over it they are closed on accept
-CONNECT_RATE = 5.0
-# seconds between two log lines that sum up refused, evicted and timed-out connections and malformed requests
-SUMMARY_INTERVAL_S = 10.0
-# seconds a WebSocket client may stay silent (it answers the server's pings every PING_INTERVAL_S) before the
-# connection is taken for half-open (Wi-Fi gone without a FIN) and dropped, so that a reconnection finds a free slot
-HEARTBEAT_TIMEOUT_S = 5.0
-# seconds past its 0.1 s wait after which the send loop takes its own event loop to have been stalled (the GIL held
-# by the simulation, a starved CPU): the client's messages of that time lie unread, so its silence is not counted
-LOOP_STALL_S = 1.0
-_HOST_RE = re.compile(r"[A-Za-z0-9.\-\[\]:]+")  # a Host header fit to be echoed into the page's CSP
-
-# close codes in the application range (4000-4999)
-CLOSE_SUPERSEDED = 4000
-CLOSE_FINISHED = 4100  # the program is done with the headset (the collection is over): no reconnecting
-CLOSE_UNAUTHORIZED = 4401
-CLOSE_HELLO_TIMEOUT = 4408
-CLOSE_LOCKED_OUT = 4429
-
-COUNTERS = (
-    "connections",  # WebSocket connections accepted (authenticated)
-    "received",  # text messages received from authenticated clients
-    "accepted",  # pose messages handed to the device
-    "malformed",  # not JSON, not the schema, binary, unknown type
-    "oversized",  # longer than MAX_MESSAGE_BYTES (or than MAX_WS_FRAME_BYTES: connection closed)
-    "version",  # a schema version this server does not speak
-    "out_of_order",  # seq not increasing or t decreasing
-    "handler_errors",  # the device's pose handler raised (logged)
-    "auth_failed",  # wrong or missing pairing token
-    "locked_out",  # connections refused after repeated wrong tokens
-    "unauthenticated",  # first message not a hello, or none within the hello timeout
-    "forbidden_origin",  # WebSocket opened from another site's page
-    "forbidden_host",  # a localhost server asked under another name (DNS rebinding)
-    "superseded",  # connections closed because a newer one authenticated
-    "refused_busy",  # TCP connections closed at once: the cap reached and no connection to evict
-    "refused_rate",  # TCP connections closed at once: their address over its connection rate
-    "evicted",  # TCP connections closed to make room for a newer one at the cap
-    "idle_closed",  # TCP connections without a TLS handshake and a request's headers within the request timeout
-    "tls_failed",  # TLS handshakes that failed or were abandoned by the client
-    "malformed_http",  # requests that were not HTTP or not valid HTTP (answered 400, connection closed)
-    "accept_failed",  # accepts that failed for want of file descriptors or memory
-    "heartbeat_timeouts",  # WebSocket clients silent for the heartbeat timeout (half-open), dropped
-    "frames_published",
-    "frames_sent",
-    "frames_skipped",
-    "status_sent",
-)
-# what the periodic summary reports; a line at WARNING when any but the last two happened (a browser's untrusted
-# certificate and its unused spare connections are routine), at INFO otherwise
-SUMMARIZED = ("refused_busy", "refused_rate", "evicted", "malformed_http", "accept_failed", "tls_failed", "idle_closed")
 
 
 class _RequestLog(logging.LoggerAdapter):
@@ -138,79 +82,7 @@ class _RequestLog(logging.LoggerAdapter):
             super().log(level, msg, *args, exc_info=exc_info, **kwargs)
 
 
-def is_loopback(host: str) -> bool:
-    """Whether binding to host keeps the server unreachable from the network."""
-    if host == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
-
-
-def new_token() -> str:
-    """A pairing token: 8 characters from a 32-letter alphabet (40 bits), shown as XXXX-XXXX."""
-    raw = "".join(secrets.choice(TOKEN_ALPHABET) for _ in range(8))
-    return f"{raw[:4]}-{raw[4:]}"
-
-
-def _is_local_name(host_header: str) -> bool:
-    """Whether a Host header names this machine's loopback (localhost, 127.x, [::1]), port aside."""
-    host = host_header.rsplit(":", 1)[0] if not host_header.endswith("]") else host_header
-    host = host.strip("[]")
-    return host == "localhost" or is_loopback(host)
-
-
-def _canonical_token(token: str) -> str:
-    return "".join(c for c in token.upper() if c.isalnum())
-
-
-@dataclass(frozen=True)
-class VRServerOptions:
-    """How a ``VRServer`` listens and guards its connections; the defaults suit a Quest over USB (``adb reverse``).
-
-    Args:
-        host (str): address to bind; 127.0.0.1 (USB) unless a Wi-Fi headset connects (e.g. "0.0.0.0")
-        port (int): TCP port; 0 picks a free one (``VRServer.port`` after ``start()``)
-        token (str or None): pairing token; required, and generated when None, when host is not loopback
-        tls (bool or None): serve HTTPS; None: exactly when host is not loopback
-        cert, key (str or None): certificate and key files (PEM); with HTTPS and either one None, a self-signed
-            pair is made
-        cert_dir (str or None): folder where the self-signed pair is kept; None: ``vr_tls.DEFAULT_CERT_DIR``
-        status_hz (float): most status messages per second sent to the page (Hz)
-        hello_timeout (float): seconds a new WebSocket connection has to say hello
-        auth_failure_delay (float): seconds a wrong pairing token waits for its answer
-        web_dir (str or Path): folder of the page's files (``WEB_DIR``)
-        max_connections (int): open TCP connections at most, TLS handshakes included, besides the operator's
-            authenticated WebSocket (``MAX_CONNECTIONS``)
-        request_timeout (float): seconds a connection has to finish its TLS handshake and send its first request's
-            headers; also the HTTP keep-alive (``REQUEST_TIMEOUT_S``)
-        connect_rate (float or None): new connections a second from one address after a burst of max_connections;
-            None: ``CONNECT_RATE`` when a token is required (the server is open to the network), no limit otherwise
-            (on loopback every client is 127.0.0.1, the headset over USB included: a shared limit would let a local
-            flood hold the operator to its pace); ``math.inf``: no limit
-        heartbeat_timeout (float): seconds of silence after which a WebSocket client is taken for gone
-            (``HEARTBEAT_TIMEOUT_S``)
-    """
-
-    host: str = "127.0.0.1"
-    port: int = 8765
-    token: str | None = None
-    tls: bool | None = None
-    cert: str | None = None
-    key: str | None = None
-    cert_dir: str | None = None
-    status_hz: float = 10.0
-    hello_timeout: float = 5.0
-    auth_failure_delay: float = 0.5
-    web_dir: str | Path = WEB_DIR
-    max_connections: int = MAX_CONNECTIONS
-    request_timeout: float = REQUEST_TIMEOUT_S
-    connect_rate: float | None = None
-    heartbeat_timeout: float = HEARTBEAT_TIMEOUT_S
-
-
-class VRServer:
+class VRServer(ServerAccessMixin):
     """aiohttp server for the VR page, running its own event loop in a daemon thread.
 
     Args:
@@ -404,11 +276,6 @@ class VRServer:
         return self._client is not None and not self._client.closed
 
     @property
-    def connection_id(self) -> int:
-        """Number of the current (or last) authenticated connection."""
-        return self._client_id
-
-    @property
     def rtt_ms(self) -> float | None:
         """WebSocket round trip measured by the last ping."""
         return self._rtt_ms
@@ -478,62 +345,6 @@ class VRServer:
         else:
             loop.default_exception_handler(context)
 
-    # ------------------------------------------------------------------ HTTP
-    async def _headers(self, request: web.Request, response: web.StreamResponse) -> None:
-        response.headers["Cache-Control"] = "no-store"
-        response.headers["X-Content-Type-Options"] = "nosniff"
-        host = request.host if _HOST_RE.fullmatch(request.host or "") else ""
-        sockets = f" ws://{host} wss://{host}" if host else ""
-        response.headers["Content-Security-Policy"] = (
-            f"default-src 'self'; img-src 'self' blob: data:; connect-src 'self'{sockets}; frame-ancestors 'none'"
-        )
-
-    @web.middleware
-    async def _request_phase(self, request: web.Request, handler) -> web.StreamResponse:
-        """Tell the connection's guard that a request is in (its deadline kept) and while it is being handled."""
-        guard = self._pool.guard(request.transport)
-        if guard is None:
-            return await handler(request)
-        guard.request_started()
-        try:
-            return await handler(request)
-        finally:
-            guard.request_finished()
-
-    @web.middleware
-    async def _host_guard(self, request: web.Request, handler) -> web.StreamResponse:
-        if not self.requires_token and not _is_local_name(request.host):
-            self.count("forbidden_host")
-            return web.Response(status=403, text="this server answers to localhost only")
-        return await handler(request)
-
-    async def _no_icon(self, request: web.Request) -> web.StreamResponse:
-        return web.Response(status=204)  # browsers ask; an error would only clutter the page's console
-
-    async def _index(self, request: web.Request) -> web.StreamResponse:
-        return web.FileResponse(self.web_dir / "index.html")
-
-    def _origin_ok(self, request: web.Request) -> bool:
-        origin = request.headers.get("Origin")
-        if origin is None:  # not a browser (scripts, tests): browsers always send Origin on WebSocket requests
-            return True
-        parts = urlsplit(origin)
-        return parts.scheme in ("http", "https") and parts.netloc == request.host
-
-    def _locked_out(self, peer: str) -> bool:
-        q = self._failures.get(peer)
-        now = time.monotonic()
-        while q and now - q[0] > AUTH_WINDOW_S:
-            q.popleft()
-        return bool(q) and len(q) >= AUTH_MAX_FAILURES
-
-    def _token_ok(self, token: str | None) -> bool:
-        if not self.requires_token:
-            return True
-        if token is None:
-            return False
-        return hmac.compare_digest(_canonical_token(token).encode(), _canonical_token(self.token).encode())
-
     # ------------------------------------------------------------------ WebSocket
     async def _websocket(self, request: web.Request) -> web.StreamResponse:
         if not self._origin_ok(request):
@@ -579,38 +390,6 @@ class VRServer:
                 if self.on_disconnect is not None:
                     self._call(self.on_disconnect, cid)
         return ws
-
-    async def _authenticate(self, ws: web.WebSocketResponse, peer: str) -> bool:
-        try:
-            msg = await asyncio.wait_for(ws.receive(), self.hello_timeout)
-        except asyncio.TimeoutError:
-            self.count("unauthenticated")
-            await ws.close(code=CLOSE_HELLO_TIMEOUT, message=b"no hello")
-            return False
-        hello = None
-        if msg.type == WSMsgType.TEXT:
-            try:
-                hello = parse_client_message(msg.data)
-            except ProtocolError as e:
-                self.count(e.reason)
-        if not isinstance(hello, HelloMessage):
-            self.count("unauthenticated")
-            if not ws.closed:
-                await ws.close(code=CLOSE_UNAUTHORIZED, message=b"the first message must be a hello")
-            return False
-        if self._locked_out(peer):
-            self.count("locked_out")
-            await ws.send_str(server_message("error", reason="too many wrong tokens: wait a minute"))
-            await ws.close(code=CLOSE_LOCKED_OUT, message=b"locked out")
-            return False
-        if not self._token_ok(hello.token):
-            self.count("auth_failed")
-            self._failures.setdefault(peer, collections.deque()).append(time.monotonic())
-            await asyncio.sleep(self.auth_failure_delay)  # a wrong guess costs time
-            await ws.send_str(server_message("error", reason="wrong or missing pairing token"))
-            await ws.close(code=CLOSE_UNAUTHORIZED, message=b"wrong token")
-            return False
-        return True
 
     def _handle_text(self, data: str, order: dict) -> None:
         self.count("received")

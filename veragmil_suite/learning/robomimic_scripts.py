@@ -1,0 +1,215 @@
+"""robomimic 0.3.0's own scripts run by our entry points (veragmil_suite.scripts.robomimic_entry), with the gaps
+of robomimic_compat's list that live in the scripts bridged: train.py's experiment folders and exit status, its
+prompts, dataset_states_to_obs.py's dataset attributes.
+"""
+
+from __future__ import annotations
+
+import builtins
+import contextlib
+import functools
+import json
+import os
+import time
+import types
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import numpy as np
+
+from veragmil_suite.utils.canonical import canonical
+
+
+def prepare_states_to_obs_script(module: types.ModuleType) -> None:
+    """
+    Patches the namespace of robomimic.scripts.dataset_states_to_obs (imported, not yet run) for one run: its
+    output is written under a temporary name beside it and renamed once complete (a failed run leaves the output
+    as it was), and each demo keeps the input's attributes (see _carry_attributes).
+    """
+    robomimic_states_to_obs = getattr(module.dataset_states_to_obs, "__wrapped__", module.dataset_states_to_obs)
+
+    @functools.wraps(robomimic_states_to_obs)
+    def dataset_states_to_obs(args):
+        folder = os.path.dirname(args.dataset)
+        output = os.path.join(folder, args.output_name)
+        partial = os.path.join(os.path.dirname(output), f".{os.path.basename(output)}.{os.getpid()}.partial")
+        args.output_name = os.path.relpath(partial, folder or ".")
+        try:
+            robomimic_states_to_obs(args)
+            _carry_attributes(args.dataset, partial)
+            os.replace(partial, output)
+            print(f"renamed {os.path.basename(partial)} to {output} (written under that name until complete)")
+        finally:
+            args.output_name = os.path.relpath(output, folder or ".")
+            if os.path.exists(partial):
+                os.remove(partial)
+
+    module.dataset_states_to_obs = dataset_states_to_obs
+
+
+def _carry_attributes(source: str, output: str) -> None:
+    """
+    Gives ``output``'s data group and demos the attributes of ``source``'s that robomimic did not write (provenance,
+    food, metrics, each demo's env_args); a demo's env_args take the env_kwargs robomimic's processing changed or
+    dropped (cameras, reward shaping) from the output's own env_args.
+    """
+    import h5py
+
+    from veragmil_suite.data.schema import VARIANTS_KEY
+
+    with h5py.File(source, "r") as fin, h5py.File(output, "a") as fout:
+        data_in, data_out = fin["data"], fout["data"]
+        before = json.loads(data_in.attrs["env_args"])["env_kwargs"]
+        after = json.loads(data_out.attrs["env_args"])["env_kwargs"]
+        processing = {k: v for k, v in after.items() if canonical(v) != canonical(before.get(k))}
+        dropped = before.keys() - after.keys()  # robomimic drops the camera settings when it renders no camera
+        for key, value in data_in.attrs.items():
+            if key not in data_out.attrs:
+                data_out.attrs[key] = value
+        for name in data_out:
+            if name not in data_in:
+                continue
+            attrs_in, attrs_out = data_in[name].attrs, data_out[name].attrs
+            for key, value in attrs_in.items():
+                if key not in attrs_out:
+                    attrs_out[key] = value
+            if "env_args" in attrs_in:
+                meta = json.loads(attrs_in["env_args"])
+                meta.pop(VARIANTS_KEY, None)
+                meta["env_kwargs"].update(processing)
+                for key in dropped:
+                    meta["env_kwargs"].pop(key, None)
+                attrs_out["env_args"] = json.dumps(meta)
+
+
+def experiment_dirs(config, auto_remove_exp_dir: bool = False) -> tuple[str, str | None, str]:
+    """
+    Replaces robomimic's get_exp_dir: <output_dir>/<experiment name>/<timestamp>/{logs, models, videos}.
+
+    A relative output_dir is taken from the working directory (robomimic took it from its own package folder in
+    site-packages). An existing experiment folder is kept and the run goes into a new timestamped folder beside
+    the earlier ones: no prompt, no deletion (auto_remove_exp_dir is accepted and ignored). Runs started in the
+    same second get a numbered suffix.
+
+    Returns:
+        3-tuple: log folder, model folder (None when saving is disabled), video folder
+    """
+    base = os.path.join(os.path.abspath(os.path.expanduser(config.train.output_dir)), config.experiment.name)
+    stamp = time.strftime("%Y%m%d%H%M%S")
+    os.makedirs(base, exist_ok=True)
+    run_dir, suffix = os.path.join(base, stamp), 0
+    while True:
+        try:
+            os.makedirs(run_dir)
+            break
+        except FileExistsError:
+            suffix += 1
+            run_dir = os.path.join(base, f"{stamp}_{suffix}")
+    model_dir = os.path.join(run_dir, "models") if config.experiment.save.enabled else None
+    log_dir = os.path.join(run_dir, "logs")
+    video_dir = os.path.join(run_dir, "videos")
+    for folder in (model_dir, log_dir, video_dir):
+        if folder is not None:
+            os.makedirs(folder)
+    return log_dir, model_dir, video_dir
+
+
+@dataclass
+class TrainOutcome:
+    """What robomimic's train() did: it swallows its errors, so the entry point reads them here."""
+
+    config: object = None
+    error: BaseException | None = None
+
+    @property
+    def failed(self) -> bool:
+        return self.error is not None
+
+
+def prepare_train_script(module: types.ModuleType) -> TrainOutcome:
+    """
+    Patches the namespace of robomimic.scripts.train (imported, not yet run) for one run.
+
+    Its train() is wrapped to record any error (its main() prints the error and returns normally) and to run
+    with $VERAGMIL_TORCH_THREADS torch threads when that is set; its DataLoader keeps the last validation batch
+    and rejects a training split smaller than one batch.
+    """
+    import torch
+
+    outcome = TrainOutcome()
+    robomimic_train = getattr(module.train, "__wrapped__", module.train)
+    threads = os.environ.get("VERAGMIL_TORCH_THREADS")
+
+    @functools.wraps(robomimic_train)
+    def train(config, device):
+        outcome.config = config
+        set_num_threads = torch.set_num_threads
+        if threads:
+            # train() calls torch.set_num_threads(2) itself: that call takes our count instead
+            torch.set_num_threads = lambda _: set_num_threads(int(threads))
+        try:
+            return robomimic_train(config, device=device)
+        except Exception as err:
+            outcome.error = err
+            raise
+        finally:
+            torch.set_num_threads = set_num_threads
+
+    def data_loader(dataset, batch_size=1, drop_last=False, **kwargs):
+        from torch.utils.data import DataLoader
+
+        config = outcome.config
+        if config is not None and config.experiment.validate:
+            valid_key = config.train.hdf5_validation_filter_key
+            if getattr(dataset, "filter_by_attribute", None) == valid_key:
+                drop_last = False
+        if drop_last and len(dataset) < batch_size:
+            raise ValueError(
+                f"the training split holds {len(dataset)} samples, fewer than one batch (train.batch_size = "
+                f"{batch_size}): record more data or lower the batch size"
+            )
+        return DataLoader(dataset, batch_size=batch_size, drop_last=drop_last, **kwargs)
+
+    module.train = train
+    module.DataLoader = data_loader
+    return outcome
+
+
+def normalize_obs(obs_dict: dict, obs_normalization_stats: dict) -> dict:
+    """robomimic's ``ObsUtils.normalize_obs`` (the same stats, of shape (1, ...)) over any leading dimensions of the
+    observations: none (a rollout step), a batch, a batch and time. Keys without statistics (an environment's extra
+    observables in rollouts) pass unchanged; a new dict is returned, the caller's is left as it was."""
+    out = dict(obs_dict)
+    for key in obs_dict.keys() & obs_normalization_stats.keys():
+        mean = np.asarray(obs_normalization_stats[key]["mean"])[0]
+        std = np.asarray(obs_normalization_stats[key]["std"])[0]
+        shape = tuple(obs_dict[key].shape)
+        if shape[len(shape) - mean.ndim :] != mean.shape:
+            raise ValueError(f"observation {key!r} of shape {shape} does not end in its statistics' {mean.shape}")
+        out[key] = (obs_dict[key] - mean) / std
+    return out
+
+
+def postprocess_without_normalizing(postprocess):
+    """Algo.postprocess_batch_for_training, less its second normalization: the dataset normalized each sample."""
+
+    @functools.wraps(postprocess)
+    def postprocess_batch_for_training(self, batch, obs_normalization_stats):
+        return postprocess(self, batch, obs_normalization_stats=None)
+
+    return postprocess_batch_for_training
+
+
+@contextlib.contextmanager
+def no_prompts() -> Iterator[None]:
+    """Turns any input() robomimic might call into an error: console commands must never wait on a prompt."""
+
+    def refuse(prompt=""):
+        raise RuntimeError(f"robomimic asked interactively ({str(prompt).strip()!r}); veragmil commands never prompt")
+
+    saved = builtins.input
+    builtins.input = refuse
+    try:
+        yield
+    finally:
+        builtins.input = saved
