@@ -46,14 +46,14 @@ quickstart: setup
 	@$(BIN)/veragmil-quickstart
 
 test: test-setup
-	$(BIN)/ruff check veragmil_suite tests scripts docs/scoop_png.py
-	$(BIN)/ruff format --check veragmil_suite tests scripts docs/scoop_png.py
+	$(BIN)/ruff check veragmil_suite tests scripts benchmarks docs/scoop_png.py
+	$(BIN)/ruff format --check veragmil_suite tests scripts benchmarks docs/scoop_png.py
 	$(BIN)/python -m pytest -q -n 2 --dist worksteal -m "not realtime" tests
 	$(BIN)/python -m pytest -q -m realtime tests
 
 lint: setup
-	$(BIN)/ruff check veragmil_suite tests scripts docs/scoop_png.py
-	$(BIN)/ruff format --check veragmil_suite tests scripts docs/scoop_png.py
+	$(BIN)/ruff check veragmil_suite tests scripts benchmarks docs/scoop_png.py
+	$(BIN)/ruff format --check veragmil_suite tests scripts benchmarks docs/scoop_png.py
 
 bench: setup
 	$(BIN)/python -m veragmil_suite.scripts.bench

@@ -1,4 +1,4 @@
-"""scripts/bench_against.py: whole expert episodes of this checkout against another, each side in its own process."""
+"""benchmarks/bench_against.py: whole expert episodes of this checkout against another, each side in its own process."""
 
 import runpy
 import shutil
@@ -11,7 +11,7 @@ ROOT = Path(__file__).parents[1]
 
 @pytest.fixture(scope="module")
 def bench_against():
-    return runpy.run_path(str(ROOT / "scripts" / "bench_against.py"), run_name="bench_against")
+    return runpy.run_path(str(ROOT / "benchmarks" / "bench_against.py"), run_name="bench_against")
 
 
 def test_both_sides_run_their_own_checkout_and_the_ratio_is_printed(bench_against, tmp_path, capsys):

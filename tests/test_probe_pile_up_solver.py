@@ -1,11 +1,11 @@
-"""scripts/probe_pile_up_solver.py: the solver's iterations and cost on states with the whole pile awake."""
+"""results/awake_pile/probe_pile_up_solver.py: the solver's iterations and cost on states with the whole pile awake."""
 
 import runpy
 from pathlib import Path
 
 import pytest
 
-SCRIPT = Path(__file__).parents[1] / "scripts" / "probe_pile_up_solver.py"
+SCRIPT = Path(__file__).parents[1] / "results" / "awake_pile" / "probe_pile_up_solver.py"
 
 
 @pytest.fixture(scope="module")

@@ -148,12 +148,14 @@ def test_sleeping_ceiling_counts_only_the_steps_with_the_whole_pile_awake():
 
 
 def test_pile_up_bench_times_the_same_steps_with_sleeping_on_and_off(capsys):
-    """scripts/bench_pile_up.py (the premise of the ceiling column): one row per seed, with the steps that end with
-    the whole pile awake counted and timed in both runs, and a clear error for a food it does not know."""
+    """results/awake_pile/bench_pile_up.py (the premise of the ceiling column): one row per seed, with the steps that
+    end with the whole pile awake counted and timed in both runs, and a clear error for a food it does not know."""
     import runpy
     from pathlib import Path
 
-    script = runpy.run_path(str(Path(__file__).parents[1] / "scripts" / "bench_pile_up.py"), run_name="bench_pile_up")
+    script = runpy.run_path(
+        str(Path(__file__).parents[1] / "results" / "awake_pile" / "bench_pile_up.py"), run_name="bench_pile_up"
+    )
     script["main"](["--foods", "pasta", "--seeds", "1"])
     row = capsys.readouterr().out.strip().splitlines()[-1].split()
     assert row[:2] == ["pasta", "0"]

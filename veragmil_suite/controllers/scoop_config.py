@@ -16,7 +16,7 @@ ARM_CONTROLLERS = ("OSC_POSE", "IK_POSE")
 
 # OSC_POSE stiffness. XArm7's joints have 1 N m of dry friction (frictionloss): at robosuite's kp=150 the pull of a
 # small pose error does not overcome it, and the spoon stops 1-8 mm short of a held target (0.07 mm with the
-# friction removed). kp=2000 holds every direction within 0.7 mm (scripts/bench_controller.py).
+# friction removed). kp=2000 holds every direction within 0.7 mm (benchmarks/bench_controller.py).
 OSC_KP = 2000.0
 # robosuite's own OSC_POSE stiffness, to which its action scale (output_max) is tuned, at its default control rate
 ROBOSUITE_OSC_KP = 150.0

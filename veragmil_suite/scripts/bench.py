@@ -37,7 +37,7 @@ from veragmil_suite.utils import cli
 
 REAL_TIME_STEPS_PER_S = 20.0  # the default 20 Hz control rate
 # the speed issue's goals: at rest, asleep, 0.6x Lift; whole expert episodes of the slowest training food 1.5x (aim
-# 3x) the rate of the task as the issue found it, which scripts/bench_against.py measures (this benchmark's gain is
+# 3x) the rate of the task as the issue found it, which benchmarks/bench_against.py measures (this benchmark's gain is
 # sleeping's alone, against today's code with sleeping off)
 REST_MUST_VS_LIFT = 0.6
 # control steps a settled pile is given to fall asleep (within 10 at GRAIN_SLEEP_TOLERANCE, 40 at 1e-3)
@@ -50,7 +50,7 @@ STEP_PARTS = {
 }
 
 
-def _env_rate(env, steps: int, warmup: int = 1) -> float:
+def env_rate(env, steps: int, warmup: int = 1) -> float:
     """Env steps/s holding still, timed after ``warmup`` steps (the first pays one-off costs)."""
     env.reset()
     action = np.zeros(env.action_dim)
@@ -204,7 +204,7 @@ def _bench_robot(
 ) -> None:
     """The tables of one robot: robosuite's Lift with it, each food at rest at each scale, whole expert episodes."""
     lift = robosuite.make("Lift", robots=robot, has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False)
-    lift_rate = _env_rate(lift, steps)
+    lift_rate = env_rate(lift, steps)
     lift.close()
     print(f"robosuite Lift ({robot}): {lift_rate:7.1f} steps/s  RTF {lift_rate / REAL_TIME_STEPS_PER_S:5.2f}")
     print(
@@ -220,12 +220,12 @@ def _bench_robot(
         for scale in scales:
             n = max(1, int(round(FOODS[food].grain(DEFAULT_PHYSICS).default_grains * scale)))
             env = make_env(food, n, robot)
-            awake = _env_rate(env, steps, warmup=REST_WARMUP_STEPS)
+            awake = env_rate(env, steps, warmup=REST_WARMUP_STEPS)
             contacts = env.sim.data.ncon
             bare = _bare_rate(env, steps)
             env.close()
             env = make_env(food, n, robot, sleep_tolerance=sleep_tolerance)
-            asleep = _env_rate(env, steps, warmup=REST_WARMUP_STEPS)
+            asleep = env_rate(env, steps, warmup=REST_WARMUP_STEPS)
             env.close()
             if food in TRAINING_FOODS and scale == 1:
                 at_rest[food] = asleep
@@ -277,7 +277,7 @@ def _bench_robot(
         off, on, ceiling = gains[slowest]
         print(
             f"\nslowest training food over whole episodes: {slowest} {off:.1f} -> {on:.1f} steps/s with sleeping, "
-            f"{on / off:.2f}x (the goal, 1.5x the task as the speed issue found it: scripts/bench_against.py); "
+            f"{on / off:.2f}x (the goal, 1.5x the task as the speed issue found it: benchmarks/bench_against.py); "
             f"{off / lift_rate:.2f} -> {on / lift_rate:.2f}x Lift; sleeping's ceiling {ceiling:.2f}x"
         )
 

@@ -7,7 +7,7 @@ be made before that; this module imports only the standard library.
 Importing it as ``veragmil_suite.utils.rendering`` first runs the package's ``__init__``, which calls
 ``use_headless_rendering()`` when there is no display and then imports robosuite. A program that wants headless
 rendering whatever the display, before anything imports robosuite, runs this file by its path instead
-(``runpy.run_path``, as scripts/bench_eval.py, bench_training.py and bench_vr.py do); ``vr_stream`` sets it in the
+(``runpy.run_path``, as benchmarks/bench_eval.py, bench_training.py and bench_vr.py do); ``vr_stream`` sets it in the
 environment of its renderer process, which imports MuJoCo without this package.
 """
 

@@ -1,6 +1,6 @@
 """A scripted stand-in for the VR page: speaks schema v1 over the WebSocket from its own thread and event loop.
 
-For tests, the benchmark (scripts/bench_vr.py), and checking a server without a headset::
+For tests, the benchmark (benchmarks/bench_vr.py), and checking a server without a headset::
 
     python -m veragmil_suite.devices.vr.client http://localhost:8765/ --seconds 5
 

@@ -108,7 +108,7 @@ class Renderer:
 
     def __init__(self, camera: str, width: int, height: int, fast: bool = True):
         self.camera, self.width, self.height = camera, width, height
-        self.fast = fast  # False: the model's own quality (for comparison in scripts/bench_vr.py)
+        self.fast = fast  # False: the model's own quality (for comparison in benchmarks/bench_vr.py)
         self.model = None
         self._assets = None
         self._gl = None

@@ -17,7 +17,7 @@ real time. The teleoperation loop never waits for a frame. The model goes to the
 renderer keeps its OpenGL context when the meshes and textures are unchanged.
 
 Each frame carries a timing block (``vr_protocol.pack_frame``): the control step it shows, the pose message that
-step's action came from, and when each stage happened, for ``scripts/bench_vr.py`` to attribute the latency.
+step's action came from, and when each stage happened, for ``benchmarks/bench_vr.py`` to attribute the latency.
 
 Depth comes from the same render pass, in metres, colour-mapped (turbo, near red to far blue) and shown beside
 the RGB image in the same JPEG: one decode and one texture on the headset.
@@ -69,11 +69,11 @@ class VRStreamOptions:
             sees in the first frame of each model (robust percentiles), so colours keep their meaning through an
             episode
         jpeg_quality (int): JPEG quality, 1-100
-        encoder (str): JPEG encoder, "pillow" (measured 2-3x faster on these frames, scripts/bench_vr.py) or
+        encoder (str): JPEG encoder, "pillow" (measured 2-3x faster on these frames, benchmarks/bench_vr.py) or
             "opencv"
         sync_to_steps (bool): render each frame as soon as a control step finishes (the newest step, at most fps
             frames a second); False: sample the simulation on an fps clock, which adds up to a frame period of
-            latency (scripts/bench_vr.py compares both)
+            latency (benchmarks/bench_vr.py compares both)
     """
 
     width: int = 320

@@ -10,8 +10,8 @@ speed at the end, over two piles; the task's sleep tolerance is 3 mm/s).
 Only cost and rest are shown here: whether a setting keeps the scoop what it is needs whole expert episodes
 (``python -m veragmil_suite.scripts.measure_expert --solver KEY=VALUE``, ``--physics-timestep``).
 
-    python scripts/bench_solvers.py                       # rice
-    python scripts/bench_solvers.py --foods rice flakes --steps 24
+    python results/awake_pile/bench_solvers.py                       # rice
+    python results/awake_pile/bench_solvers.py --foods rice flakes --steps 24
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Steady-state error of the arm controllers: where the spoon comes to rest when a device holds a target pose.
 
-    python scripts/bench_controller.py                 # every configuration, 3 s hold per move
-    python scripts/bench_controller.py --hold-s 5 --configs ours robosuite
+    python benchmarks/bench_controller.py                 # every configuration, 3 s hold per move
+    python benchmarks/bench_controller.py --hold-s 5 --configs ours robosuite
 
 A target-holding device (the VR clutch, the scripted expert) sends every step the action that points from the
 spoon's pose to its target. The spoon first rises 8 cm clear of the pile, then the target jumps by each move below

@@ -9,9 +9,9 @@ train.py uses 2; set VERAGMIL_TORCH_THREADS for veragmil-train). Without --datas
 rate per CPU second (this process's CPU time, all its threads) stands for an idle core with 1 thread even when other
 jobs load the machine.
 
-    python scripts/bench_training.py                       # bc, bc_rnn, bcq, bc_image, diffusion_policy
-    python scripts/bench_training.py --algos bc_rnn_image --image-steps 2
-    python scripts/bench_training.py --algos diffusion_policy --diffusion-steps 5 --threads 1 2
+    python benchmarks/bench_training.py                       # bc, bc_rnn, bcq, bc_image, diffusion_policy
+    python benchmarks/bench_training.py --algos bc_rnn_image --image-steps 2
+    python benchmarks/bench_training.py --algos diffusion_policy --diffusion-steps 5 --threads 1 2
 """
 
 from __future__ import annotations
@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import runpy
 import sys
 import tempfile
 import time
@@ -31,9 +30,8 @@ ROOT = Path(__file__).resolve().parents[1]
 EPOCH_PARTS = ("Data_Loading", "Process_Batch", "Train_Batch", "Log_Info")
 CONFIG_DIR = ROOT / "configs" / "json"
 
-# OSMesa whatever the display, set before robosuite is imported: veragmil_suite.utils.rendering is run from its file, as
-# importing it through the package would import robosuite first
-runpy.run_path(str(ROOT / "veragmil_suite" / "utils" / "rendering.py"))["use_headless_rendering"]()
+# OSMesa whatever the display (veragmil_suite.utils.rendering's forced choice), set before robosuite is imported
+os.environ["MUJOCO_GL"] = os.environ["PYOPENGL_PLATFORM"] = "osmesa"
 os.environ.setdefault("PYNPUT_BACKEND", "dummy")
 
 

@@ -5,24 +5,19 @@ The same episodes (same agent, food and seeds, so the same work) run once per pr
 veragmil_suite.evaluation.evaluate.evaluate, timed from the call to the last record: worker start-up is included, as a
 user pays it. A warm-up episode first fills the settled-pile cache. The issue's target is a ratio of at least 1.7.
 
-    python scripts/bench_eval.py                                   # the scripted expert on pasta
-    python scripts/bench_eval.py --food rice --episodes 6 --checkpoint runs/x/models/model_epoch_20.pth
+    python benchmarks/bench_eval.py                                   # the scripted expert on pasta
+    python benchmarks/bench_eval.py --food rice --episodes 6 --checkpoint runs/x/models/model_epoch_20.pth
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import runpy
 import sys
 import time
-from pathlib import Path
 
-# OSMesa whatever the display, set before robosuite is imported: veragmil_suite.utils.rendering is run from its file, as
-# importing it through the package would import robosuite first
-runpy.run_path(str(Path(__file__).resolve().parents[1] / "veragmil_suite" / "utils" / "rendering.py"))[
-    "use_headless_rendering"
-]()
+# OSMesa whatever the display (veragmil_suite.utils.rendering's forced choice), set before robosuite is imported
+os.environ["MUJOCO_GL"] = os.environ["PYOPENGL_PLATFORM"] = "osmesa"
 os.environ.setdefault("PYNPUT_BACKEND", "dummy")
 
 TARGET_RATIO = 1.7

@@ -6,8 +6,8 @@ The same scripted expert episodes (same seeds) run with sleeping off and on; the
 awake in the run with sleeping on are timed in both runs (the two runs follow the same actions closely, not
 exactly: the physics differs by what sleeps), beside every other step.
 
-    python scripts/bench_pile_up.py                       # rice, 4 seeds
-    python scripts/bench_pile_up.py --foods rice buckwheat --seeds 2
+    python results/awake_pile/bench_pile_up.py                       # rice, 4 seeds
+    python results/awake_pile/bench_pile_up.py --foods rice buckwheat --seeds 2
 """
 
 from __future__ import annotations

@@ -10,8 +10,8 @@ evaluation episodes again in this process with Ray's workers already warm, and a
 here vs in a Ray task). Each side is measured --repeats times, alternating, and its fastest time kept; the load
 average is printed before and after: other processes on the cores slow both sides.
 
-    python scripts/bench_ray.py                      # about 5 minutes on 2 idle cores
-    python scripts/bench_ray.py --episodes 8 --demos 4 --steps 50 --repeats 3
+    python benchmarks/bench_ray.py                      # about 5 minutes on 2 idle cores
+    python benchmarks/bench_ray.py --episodes 8 --demos 4 --steps 50 --repeats 3
 """
 
 from __future__ import annotations
@@ -19,17 +19,14 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import runpy
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-# OSMesa whatever the display, set before robosuite is imported (see scripts/bench_eval.py)
-runpy.run_path(str(Path(__file__).resolve().parents[1] / "veragmil_suite" / "utils" / "rendering.py"))[
-    "use_headless_rendering"
-]()
+# OSMesa whatever the display (veragmil_suite.utils.rendering's forced choice), set before robosuite is imported
+os.environ["MUJOCO_GL"] = os.environ["PYOPENGL_PLATFORM"] = "osmesa"
 os.environ.setdefault("PYNPUT_BACKEND", "dummy")
 
 FOOD = "pasta"

@@ -10,7 +10,7 @@ the host stayed the same through the run.
     # the task as the speed issue found it (16c283c, MuJoCo 3.3.7) against this checkout
     git archive 16c283c --prefix=base/ | tar -x -C /tmp
     pip install --no-deps --target /tmp/mj337 mujoco==3.3.7
-    python scripts/bench_against.py --base /tmp/base --base-path /tmp/mj337 --food rice --episodes 4 --rounds 3
+    python benchmarks/bench_against.py --base /tmp/base --base-path /tmp/mj337 --food rice --episodes 4 --rounds 3
 
 Each side runs the episodes of seeds 0..episodes-1 on pile variant 0 (resets untimed; a first untimed episode
 settles or loads the piles). A side's own defaults apply (this checkout's sleeping among them); ``--sleep
@@ -30,6 +30,18 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parent.parent
 
 
+def _first_module(*names: str):
+    """The first of ``names`` that imports (a module's place in this checkout, then in older ones)."""
+    import importlib
+
+    for name in names:
+        try:
+            return importlib.import_module(name)
+        except ModuleNotFoundError:
+            continue
+    raise ModuleNotFoundError(f"none of {names} in this checkout")
+
+
 def _child(food: str, episodes: int, lift_steps: int, sleep_off: bool, physics: str | None = None) -> dict:
     """One side's figures, in the process of that side's checkout and MuJoCo (only API both sides have)."""
     import time
@@ -38,13 +50,17 @@ def _child(food: str, episodes: int, lift_steps: int, sleep_off: bool, physics: 
     import robosuite
 
     import veragmil_suite
-    from veragmil_suite.devices.expert import ScriptedScooper
-    from veragmil_suite.environments.episode import run_until_done
-    from veragmil_suite.scripts.bench import _env_rate  # the same in both checkouts: steps/s held still, after one step
+
+    # each module where this checkout keeps it, or where a checkout from before the role folders (#35) did
+    expert = _first_module("veragmil_suite.devices.expert", "veragmil_suite.expert")
+    episode = _first_module("veragmil_suite.environments.episode", "veragmil_suite.episode")
+    bench = _first_module("veragmil_suite.scripts.bench", "veragmil_suite.bench")
+    ScriptedScooper, run_until_done = expert.ScriptedScooper, episode.run_until_done
+    env_rate = getattr(bench, "env_rate", None) or bench._env_rate  # steps/s held still, after one step
 
     headless = dict(has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False)
     lift = robosuite.make("Lift", robots="XArm7", **headless)
-    lift_rate = _env_rate(lift, lift_steps)
+    lift_rate = env_rate(lift, lift_steps)
     lift.close()
 
     kwargs = dict(robots="XArm7", food=food, pile_variants=1, seed=0, **headless)
@@ -86,7 +102,7 @@ def _run_side(name: str, checkout: Path, extra_path: str | None, args) -> dict:
     if args.cache_root:
         env["VERAGMIL_CACHE_DIR"] = str(Path(args.cache_root) / name)
     code = (
-        f"import json, sys; sys.path.insert(0, {str(REPO / 'scripts')!r}); import bench_against as b; "
+        f"import json, sys; sys.path.insert(0, {str(Path(__file__).resolve().parent)!r}); import bench_against as b; "
         f"print('RESULT ' + json.dumps(b._child({args.food!r}, {args.episodes}, {args.lift_steps}, "
         f"{name == 'this' and args.sleep == 'off'}, {args.physics if name == 'this' else None!r})))"
     )

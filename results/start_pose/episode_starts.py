@@ -9,7 +9,7 @@ spoon at reset as offsets from the training demos' mean start (mm), the distance
 With --checkpoint it also runs that policy on --probe episodes twice: as drawn, and with the arm's initial joint
 noise set to zero (the noise is still drawn, times zero, so the bowl and pile stay those of the seed).
 
-    python scripts/episode_starts.py --dataset runs/grid3/data/expert.hdf5 --filter-key first30 \\
+    python results/start_pose/episode_starts.py --dataset runs/grid3/data/expert.hdf5 --filter-key first30 \\
         results/grid_expert_20ep/episodes.csv results/bc_demos_expert/episodes.csv \\
         --checkpoint runs/grid3/runs/expert_bc_100demos_50000steps/<time>/models/model_epoch_100.pth \\
         --probe 17 13 --probe-foods pasta peas
@@ -21,13 +21,12 @@ import argparse
 import collections
 import csv
 import os
-import runpy
 from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-runpy.run_path(str(ROOT / "veragmil_suite" / "utils" / "rendering.py"))["use_headless_rendering"]()
+ROOT = Path(__file__).resolve().parents[2]
+os.environ["MUJOCO_GL"] = os.environ["PYOPENGL_PLATFORM"] = "osmesa"
 os.environ.setdefault("PYNPUT_BACKEND", "dummy")
 
 M_TO_MM = 1000.0

@@ -11,8 +11,8 @@ here, veragmil-bench) comes on top in a rollout.
 Wall-clock rates hold only on an otherwise idle machine; the CPU-time rates (this process's CPU seconds, all its
 threads) stand for an idle core with 1 thread even when other jobs load the machine.
 
-    python scripts/bench_policy.py                              # DDIM 10 and 5, DDPM 100; chunks of 8 and 1
-    python scripts/bench_policy.py --checkpoint runs/x/models/model_epoch_100.pth --threads 1 2
+    python benchmarks/bench_policy.py                              # DDIM 10 and 5, DDPM 100; chunks of 8 and 1
+    python benchmarks/bench_policy.py --checkpoint runs/x/models/model_epoch_100.pth --threads 1 2
 """
 
 from __future__ import annotations
@@ -20,16 +20,14 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import runpy
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE_DATA = ROOT / "demos" / "scoop.hdf5"
 
-# OSMesa whatever the display, set before robosuite is imported: veragmil_suite.utils.rendering is run from its file, as
-# importing it through the package would import robosuite first
-runpy.run_path(str(ROOT / "veragmil_suite" / "utils" / "rendering.py"))["use_headless_rendering"]()
+# OSMesa whatever the display (veragmil_suite.utils.rendering's forced choice), set before robosuite is imported
+os.environ["MUJOCO_GL"] = os.environ["PYOPENGL_PLATFORM"] = "osmesa"
 os.environ.setdefault("PYNPUT_BACKEND", "dummy")
 
 # (scheduler, denoising steps, actions executed per prediction): the config's case first

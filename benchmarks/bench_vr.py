@@ -1,8 +1,8 @@
 """Benchmark of the VR teleoperation path: pose-to-action latency, messages/s handled, frames/s streamed,
 hand-to-frame latency and where it goes.
 
-    python scripts/bench_vr.py              # about five minutes
-    python scripts/bench_vr.py --seconds 4 --trials 40  # shorter runs, noisier figures
+    python benchmarks/bench_vr.py              # about five minutes
+    python benchmarks/bench_vr.py --seconds 4 --trials 40  # shorter runs, noisier figures
 
 1. Rendering and JPEG encoding of the streamed camera (ScoopGranular's overhead camera, 320x240 RGB + depth):
    MuJoCo's default quality against the stream's settings (no multisampling, shadows or reflections, coarse
@@ -25,7 +25,7 @@ hand-to-frame latency and where it goes.
    first such frame counts as showing the move (its action has begun), and a second line gives the first frame of
    that step finished. A headset adds its own decode and display: up to one 90 Hz display frame (11 ms).
 
-    python scripts/bench_vr.py --sections 5 --trials 200   # hand-to-frame only, about 200 moves per schedule
+    python benchmarks/bench_vr.py --sections 5 --trials 200   # hand-to-frame only, about 200 moves per schedule
 """
 
 from __future__ import annotations
@@ -37,15 +37,10 @@ import json
 import multiprocessing
 import os
 import random
-import runpy
 import time
-from pathlib import Path
 
-# OSMesa whatever the display, set before robosuite is imported: veragmil_suite.utils.rendering is run from its file, as
-# importing it through the package would import robosuite first
-runpy.run_path(str(Path(__file__).resolve().parents[1] / "veragmil_suite" / "utils" / "rendering.py"))[
-    "use_headless_rendering"
-]()
+# OSMesa whatever the display (veragmil_suite.utils.rendering's forced choice), set before robosuite is imported
+os.environ["MUJOCO_GL"] = os.environ["PYOPENGL_PLATFORM"] = "osmesa"
 os.environ.setdefault("PYNPUT_BACKEND", "dummy")
 
 import numpy as np  # noqa: E402

@@ -5,8 +5,8 @@ States with every grain awake are taken from one scripted expert episode (every 
 each is solved again by ``mj_forward`` from its own warm start, under the task's settings and under each variant,
 and the iterations CG ran (on the largest island) and the time of the forward are printed.
 
-    python scripts/probe_pile_up_solver.py                    # rice, seed 0
-    python scripts/probe_pile_up_solver.py --food buckwheat --every 4
+    python results/awake_pile/probe_pile_up_solver.py                    # rice, seed 0
+    python results/awake_pile/probe_pile_up_solver.py --food buckwheat --every 4
 """
 
 from __future__ import annotations
