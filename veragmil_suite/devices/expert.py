@@ -217,8 +217,6 @@ class ScriptedScooper:
         self.speed_to_offset = np.where(self.driven, 1.0 / speed, 0.0)
         self.reset()
 
-    # -------------------------------------------------------------------------------------------------------- #
-
     def reset(self, seed: int | None = None) -> None:
         """Start a new episode: first phase, fresh noise, a new random plan (drawn from ``seed`` when given)."""
         if seed is not None:
@@ -312,8 +310,6 @@ class ScriptedScooper:
         """The operator as an unrecorded agent of veragmil_suite.environments.episode.run_until_done: the action it
         executes, or None once the scoop is done."""
         return None if self.done else self.executed(self.act(obs))
-
-    # -------------------------------------------------------------------------------------------------------- #
 
     def _rotation_error(self, target_rot: np.ndarray, eef_rot: np.ndarray) -> np.ndarray:
         """Axis-angle from the spoon's attitude to the target's (world frame); with a free heading, to the target

@@ -22,10 +22,6 @@ from veragmil_suite.utils.cli.handler import UsageError, command
 from veragmil_suite.utils.cli.parser import Parser
 from veragmil_suite.utils.rendering import use_headless_rendering
 
-# ---------------------------------------------------------------------------------------------------------------- #
-# info                                                                                                             #
-# ---------------------------------------------------------------------------------------------------------------- #
-
 
 def _pct(x) -> str:
     return "n/a" if x is None else f"{100 * x:.0f}%"
@@ -124,11 +120,6 @@ def info_main(args: argparse.Namespace) -> int:
     return 0
 
 
-# ---------------------------------------------------------------------------------------------------------------- #
-# merge and split                                                                                                  #
-# ---------------------------------------------------------------------------------------------------------------- #
-
-
 def _refuse_existing(path: str, force: bool) -> None:
     if Path(path).exists() and not force:
         raise UsageError(f"{path} exists (use --force to overwrite it)")
@@ -189,11 +180,6 @@ def split_main(args: argparse.Namespace) -> int:
     prefix = f"{args.filter_key}_" if args.filter_key else ""
     print(f"{args.dataset}: mask/{prefix}train {n_train} demos, mask/{prefix}valid {n_valid} demos")
     return 0
-
-
-# ---------------------------------------------------------------------------------------------------------------- #
-# replay and re-rendering                                                                                          #
-# ---------------------------------------------------------------------------------------------------------------- #
 
 
 def build_replay_parser() -> Parser:

@@ -212,10 +212,6 @@ class _Backend:
         raise NotImplementedError
 
 
-# ---------------------------------------------------------------------------------------------------------------- #
-# Local worker processes                                                                                           #
-# ---------------------------------------------------------------------------------------------------------------- #
-
 _LOCAL_CONTEXT: dict[str, Any] = {}  # per local worker process: the run's context
 
 
@@ -265,10 +261,6 @@ class _ProcessBackend(_Backend):
             handle.cancel()
         self.pool.shutdown(wait=True, cancel_futures=True)  # at most the pieces under way
 
-
-# ---------------------------------------------------------------------------------------------------------------- #
-# Ray tasks                                                                                                        #
-# ---------------------------------------------------------------------------------------------------------------- #
 
 _SET_UP: set[str] = set()  # per Ray worker process: the setups already run
 

@@ -96,7 +96,6 @@ class Clutch:
         self.precision = False
         self.reset()
 
-    # ------------------------------------------------------------------ state
     def reset(self) -> None:
         """New episode: forget anchors and the held pose (the next update holds the robot where it is)."""
         self.engaged = False
@@ -121,7 +120,6 @@ class Clutch:
         else:
             self._ctrl_anchor = self._ee_anchor = None
 
-    # ------------------------------------------------------------------ operator commands
     def set_pos_scale(self, scale: float) -> None:
         if scale <= 0:
             raise ValueError("scale must be positive")
@@ -154,7 +152,6 @@ class Clutch:
         self.map = xr_to_robot(self.camera_yaw, self.operator_yaw)
         self._reanchor()
 
-    # ------------------------------------------------------------------ per control step
     def mapped_pose(self, ctrl: Pose) -> Pose:
         """The end-effector pose the hand pose ctrl asks for under the current anchors (before the clamp)."""
         if self._ctrl_anchor is None or self._ee_anchor is None:

@@ -134,7 +134,6 @@ class ConnectionGuard(asyncio.Protocol):
         self.requests = 0  # requests being handled (a WebSocket's lasts as long as it is open)
         self.operator = False  # the authenticated operator's WebSocket: outside the cap, never evicted
 
-    # ------------------------------------------------------------------ what the server tells it
     def request_started(self) -> None:
         """The headers of a request are in: the connection has kept its deadline."""
         self.requests += 1
@@ -149,7 +148,6 @@ class ConnectionGuard(asyncio.Protocol):
         if self._tcp is not None:
             self._tcp.abort()
 
-    # ------------------------------------------------------------------ asyncio.Protocol
     def connection_made(self, transport) -> None:
         pool = self._pool
         peer = transport.get_extra_info("peername")
@@ -225,7 +223,6 @@ class ConnectionGuard(asyncio.Protocol):
         if self.transport is not None:
             self._inner.connection_lost(exc)
 
-    # ------------------------------------------------------------------ internal
     def _expire(self) -> None:
         self._timer = None
         if not self._closed:

@@ -180,7 +180,6 @@ class VRDevice(DeviceStatusMixin, Device):
             self._display_controls()
             self._display_address()
 
-    # ------------------------------------------------------------------ robosuite Device interface
     @staticmethod
     def _display_controls():
         """Method to pretty print controls."""
@@ -296,7 +295,6 @@ class VRDevice(DeviceStatusMixin, Device):
         norm = np.clip(norm, np.maximum(in_lo, -1.0), np.minimum(in_hi, 1.0))
         return norm[:3], norm[3:]
 
-    # ------------------------------------------------------------------ episode hooks
     def request_episode_end(self, command: str) -> None:
         """End the episode as the VR buttons do: ``input2action()`` returns None from the next call on."""
         if command not in EPISODE_COMMANDS:
@@ -362,7 +360,6 @@ class VRDevice(DeviceStatusMixin, Device):
     def __exit__(self, *exc) -> None:
         self.close()
 
-    # ------------------------------------------------------------------ server thread
     def _on_connect(self, connection: int) -> None:
         with self._lock:
             self._filter.reset()
@@ -399,7 +396,6 @@ class VRDevice(DeviceStatusMixin, Device):
             self._handled += 1
             self._handle_s += time.perf_counter() - t0
 
-    # ------------------------------------------------------------------ helpers
     @staticmethod
     def _default_camera(env) -> str:
         names = [env.sim.model.camera_id2name(i) for i in range(env.sim.model.ncam)]

@@ -146,7 +146,6 @@ class VRServer(ServerAccessMixin):
         self._error: BaseException | None = None
         self._runner: web.AppRunner | None = None
 
-    # ------------------------------------------------------------------ lifecycle
     def start(self, timeout: float = 15.0) -> VRServer:
         """Start listening (returns once the port is bound; raises what binding raised)."""
         if self._thread is not None:
@@ -257,7 +256,6 @@ class VRServer(ServerAccessMixin):
             self._pool.close_all()
         self._log_summary()
 
-    # ------------------------------------------------------------------ public, thread-safe
     @property
     def url(self) -> str:
         """The page's address for a browser on this machine (over USB: on the headset too)."""
@@ -318,7 +316,6 @@ class VRServer(ServerAccessMixin):
             except RuntimeError:  # the loop closed between the check and the call: nothing to wake
                 pass
 
-    # ------------------------------------------------------------------ refusals, summed up
     def _note(self, key: str) -> None:
         """Count a refused, evicted or timed-out connection or a malformed request (server thread); a log line sums
         them up SUMMARY_INTERVAL_S after the first."""
@@ -345,7 +342,6 @@ class VRServer(ServerAccessMixin):
         else:
             loop.default_exception_handler(context)
 
-    # ------------------------------------------------------------------ WebSocket
     async def _websocket(self, request: web.Request) -> web.StreamResponse:
         if not self._origin_ok(request):
             self.count("forbidden_origin")

@@ -32,7 +32,6 @@ from veragmil_suite.devices.vr.server_options import (
 class ServerAccessMixin:
     """VRServer's HTTP side and access checks (see the module docstring)."""
 
-    # ------------------------------------------------------------------ HTTP
     async def _headers(self, request: web.Request, response: web.StreamResponse) -> None:
         response.headers["Cache-Control"] = "no-store"
         response.headers["X-Content-Type-Options"] = "nosniff"

@@ -188,7 +188,6 @@ class CameraStream:
         self._actions_lock = threading.Lock()
         self._thread: threading.Thread | None = None
 
-    # ------------------------------------------------------------------ lifecycle
     def start(self, timeout: float = 120.0) -> CameraStream:
         """Start the renderer process and the sampling thread; returns once the renderer has the model (a few
         seconds: the renderer uploads every texture into its OpenGL context)."""
@@ -234,7 +233,6 @@ class CameraStream:
             frame_ms=self._frame_ms / n,
         )
 
-    # ------------------------------------------------------------------ renderer process
     def _spawn(self) -> None:
         config = dict(
             camera=self.camera_name,
@@ -299,7 +297,6 @@ class CameraStream:
         self.models_sent += 1
         self._model = model
 
-    # ------------------------------------------------------------------ sampling thread
     def _run(self) -> None:
         period = 1.0 / self.fps
         shown = None  # the scene of the last frame rendered
