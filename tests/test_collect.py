@@ -16,6 +16,7 @@ import robosuite
 
 from veragmil_suite.data.schema import open_dataset
 from veragmil_suite.devices import operators
+from veragmil_suite.devices.session import SessionDevice
 from veragmil_suite.scripts import collect_human_demonstrations as collect
 from veragmil_suite.scripts import dataset_tools
 from veragmil_suite.utils import cli
@@ -183,11 +184,12 @@ def test_scripted_3d_mouse_data_is_labelled_scripted(tmp_path):
         assert ((actions != 0).sum(axis=1) <= 1).all()
 
 
-class FakeHeadset:
-    """A device whose operator takes a while to squeeze the grip (IDLE calls), pushes the spoon up for a few steps,
-    then presses the scripted button ("keep"/"discard")."""
+class FakeHeadset(SessionDevice):
+    """A clutched device whose operator takes a while to squeeze the grip (IDLE calls), pushes the spoon up for a few
+    steps, then presses the scripted button ("keep"/"discard")."""
 
     IDLE = 7
+    clutched = True
 
     def __init__(self, env, verdicts):
         self.env = env
@@ -222,12 +224,18 @@ class FakeHeadset:
             return None
         return {"right_delta": np.array([0.0, 0.0, 0.3, 0.0, 0.0, 0.0])}
 
-    def close(self, farewell=None):
+    def set_recording(self, on):
+        self.recording = on
+
+    def show_progress(self, text):
+        self.progress = text
+
+    def close_session(self, farewell=None):
         self.farewell = farewell
 
-    def stats(self):
+    def connection_counters(self):
         # the page reconnected once after being dropped as silent
-        return {"server": {"connections": 2, "malformed": 0, "heartbeat_timeouts": 1}}
+        return {"connections": 2, "malformed": 0, "heartbeat_timeouts": 1}
 
 
 def test_keep_and_discard_from_the_device(tmp_path, monkeypatch, capsys):

@@ -8,6 +8,7 @@ import time
 
 import numpy as np
 
+from veragmil_suite.devices.session import RobosuiteDevice, SessionDevice
 from veragmil_suite.utils.cli.handler import UsageError
 
 
@@ -40,13 +41,14 @@ class ScriptedOperator:
 
 
 class TeleopOperator:
-    """A robosuite Device (keyboard, SpaceMouse, VR) as an operator."""
+    """A person on a teleoperation device (a SessionDevice, or one of robosuite's devices, which it wraps) as an
+    operator."""
 
     source = "human"
 
     def __init__(self, env, device, name: str, arm: str = "right", goal_update_mode: str = "target"):
         self.env = env
-        self.device = device
+        self.device = device if isinstance(device, SessionDevice) else RobosuiteDevice(device)
         self.name = name
         self.arm = arm
         self.goal_update_mode = goal_update_mode
@@ -57,19 +59,18 @@ class TeleopOperator:
         self.command = None
         self.ended = False
         self.device.start_control()
-        if hasattr(self.device, "engaged"):
-            # a clutched device (VR): the episode starts at the operator's first squeeze; until then the robot
-            # stands still and nothing is recorded or counted against the horizon
-            self.device.status_message = "squeeze the grip to start"
+        if self.device.clutched:
+            # the episode starts at the operator's first squeeze; until then the robot stands still and nothing is
+            # recorded or counted against the horizon
+            self.device.show_status("squeeze the grip to start")
             while not self.device.engaged:
                 if self.device.input2action() is None:  # keep, discard or reset before starting: an empty episode
-                    self.command = getattr(self.device, "episode_command", None) or "reset"
+                    self.command = self.device.episode_command or "reset"
                     self.ended = True
                     return
                 time.sleep(self.env.control_timestep)
-            self.device.status_message = ""
-        if hasattr(self.device, "recording"):
-            self.device.recording = True
+            self.device.show_status("")
+        self.device.set_recording(True)
 
     def action(self, obs: dict) -> np.ndarray | None:
         if self.ended:
@@ -78,7 +79,7 @@ class TeleopOperator:
         mode = {} if self.goal_update_mode == "target" else {"goal_update_mode": self.goal_update_mode}
         action_dict = self.device.input2action(**mode)
         if action_dict is None:
-            self.command = getattr(self.device, "episode_command", None) or "reset"
+            self.command = self.device.episode_command or "reset"
             return None
         robot = self.env.robots[0]
         controller = robot.part_controllers[self.arm]
@@ -86,36 +87,32 @@ class TeleopOperator:
         return robot.create_action_vector({self.arm: action_dict[key]})
 
     def wait_for_verdict(self) -> str | None:
-        """VR: after an episode ended by itself, wait for the operator's keep or discard button."""
-        if not hasattr(self.device, "request_episode_end"):
+        """After an episode ended by itself, the operator's keep or discard, on a device that asks for one (VR)."""
+        if not self.device.asks_verdict:
             return None
-        self.device.status_message = "press keep or discard"
+        self.device.show_status("press keep or discard")
         self.device.start_control()
         while self.device.input2action() is not None:
             time.sleep(0.02)
         return self.device.episode_command
 
     def end(self) -> None:
-        if hasattr(self.device, "recording"):
-            self.device.recording = False
+        self.device.set_recording(False)
 
     def show_progress(self, text: str) -> None:
         """The collection's state on the device's status line, where it has one (VR)."""
-        if hasattr(self.device, "progress"):
-            self.device.progress = text
+        self.device.show_progress(text)
 
     def close(self, farewell: str | None = None) -> None:
-        if hasattr(self.device, "progress"):
-            self.device.close(farewell=farewell)
-        elif hasattr(self.device, "close"):
-            self.device.close()
+        self.device.close_session(farewell)
 
     def connection_line(self) -> str | None:
-        """VR: the server's non-zero counters (vr_server.COUNTERS), so that a session whose page reconnected or was
-        dropped as silent says so after the fact."""
-        if not hasattr(self.device, "stats"):
+        """The device's non-zero connection counters (VR: the server's, vr.server_options.COUNTERS), so that a
+        session whose page reconnected or was dropped as silent says so after the fact."""
+        counters = self.device.connection_counters()
+        if counters is None:
             return None
-        counts = [f"{name} {n}" for name, n in self.device.stats()["server"].items() if n]
+        counts = [f"{name} {n}" for name, n in counters.items() if n]
         return "vr server: " + (", ".join(counts) or "no page connected")
 
 

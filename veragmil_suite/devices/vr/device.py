@@ -35,6 +35,7 @@ import numpy as np
 from robosuite.controllers.parts.arm.osc import OperationalSpaceController
 from robosuite.devices import Device
 
+from veragmil_suite.devices.session import SessionDevice
 from veragmil_suite.devices.vr.clutch import Clutch, Pose
 from veragmil_suite.devices.vr.controls import DEFAULT_BINDINGS, ButtonEvents
 from veragmil_suite.devices.vr.device_status import DeviceStatusMixin
@@ -50,7 +51,7 @@ SCALE_STEP = 1.25
 SCALE_LIMITS = (0.05, 5.0)
 
 
-class VRDevice(DeviceStatusMixin, Device):
+class VRDevice(SessionDevice, DeviceStatusMixin, Device):
     """A robosuite Device driven by a WebXR headset's controller (see the module docstring).
 
     Args:
@@ -294,6 +295,28 @@ class VRDevice(DeviceStatusMixin, Device):
                 norm[part] /= peak
         norm = np.clip(norm, np.maximum(in_lo, -1.0), np.minimum(in_hi, 1.0))
         return norm[:3], norm[3:]
+
+    # the recording session's hooks (SessionDevice): a clutch, a status line, a verdict button, a server
+    clutched = True
+
+    def show_status(self, text: str) -> None:
+        self.status_message = text
+
+    def set_recording(self, on: bool) -> None:
+        self.recording = on
+
+    def show_progress(self, text: str) -> None:
+        self.progress = text
+
+    @property
+    def asks_verdict(self) -> bool:
+        return True
+
+    def connection_counters(self) -> dict[str, int]:
+        return self.stats()["server"]
+
+    def close_session(self, farewell: str | None = None) -> None:
+        self.close(farewell=farewell)
 
     def request_episode_end(self, command: str) -> None:
         """End the episode as the VR buttons do: ``input2action()`` returns None from the next call on."""
