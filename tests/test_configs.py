@@ -139,3 +139,14 @@ def test_observation_keys_are_what_scoopgranular_gives():
         assert used and set(used) <= set(obs), f"{name}.json uses keys ScoopGranular lacks: {set(used) - set(obs)}"
     assert obs["overhead_image"].shape == (84, 84, 3) and obs["overhead_depth"].shape == (84, 84, 1)
     assert obs["desired_pose"].shape == (7,)
+
+
+def test_every_registered_algorithm_has_its_config_and_a_name_registers_once():
+    from veragmil_suite.learning.algorithms import ALGORITHMS, register_algorithm
+
+    assert {"bc", "bc_rnn", "bcq", "diffusion_policy"} <= set(ALGORITHMS)
+    for algorithm in ALGORITHMS.values():
+        config = json.loads((CONFIG_DIR / f"{algorithm.config}.json").read_text())
+        assert config["algo_name"] in (algorithm.name, "bc")  # BC-RNN trains robomimic's bc with its RNN on
+    with pytest.raises(ValueError, match="registered already"):
+        register_algorithm("bc", "bc", "BC again")

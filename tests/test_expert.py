@@ -134,3 +134,17 @@ def test_measure_expert_compares_runs_seed_by_seed(tmp_path):
     table = compare([str(p) for p in paths])
     assert "| rice | 2/2, 25.0 +- 5.0, 0.0, 9.00 s, 20.0/s | not run |" in table
     assert "step 1/200 s, iterations=20" in table and "peas +0.0 (same load 1/1)" in table
+
+
+def test_a_registered_profile_is_an_operator_and_a_name_registers_once():
+    from veragmil_suite.devices.expert import OperatorProfile, get_profile, register_profile
+    from veragmil_suite.utils import cli
+
+    profile = register_profile(OperatorProfile("test-slow", speed=0.5))
+    try:
+        assert get_profile("test-slow") is profile
+        assert cli.profile("test-slow") == "test-slow"  # --profile takes it
+        with pytest.raises(ValueError, match="registered already"):
+            register_profile(OperatorProfile("test-slow"))
+    finally:
+        del PROFILES["test-slow"]

@@ -79,16 +79,30 @@ class OperatorProfile:
     injected_noise_time_s: float = 0.3
 
 
-PROFILES = {
-    "expert": OperatorProfile("expert"),
-    "careful": OperatorProfile("careful", speed=0.7, pos_noise=0.002, rot_noise=0.01),
-    "hasty": OperatorProfile("hasty", speed=1.4, pos_noise=0.006, rot_noise=0.03, plan_jitter_m=0.004, max_accel=1.2),
-    "noisy": OperatorProfile("noisy", pos_noise=0.008, rot_noise=0.04, plan_jitter_m=0.004),
-    # the expert executing noisy actions while its own are recorded (noise injection, DART). MuJoCo 3.8.1, stiff
-    # OSC_POSE, 10 seeds per training food: at 0.05 it succeeds 80-100% (pasta 80%, the expert 90%), 2 s slower;
-    # at 0.1 it spills on the carry and cannot hold still (pasta 12%, buckwheat 38%), even with the hold noise-free
-    "expert-dart": OperatorProfile("expert-dart", injected_noise=0.05),
-    "spacemouse": OperatorProfile(
+PROFILES: dict[str, OperatorProfile] = {}
+
+
+def register_profile(profile: OperatorProfile) -> OperatorProfile:
+    """Adds an operator profile under its name (a name registered twice is refused): --profile, veragmil-study's
+    --profiles and the expert:<profile> agents take every registered one."""
+    if profile.name in PROFILES:
+        raise ValueError(f"operator profile {profile.name!r} is registered already")
+    PROFILES[profile.name] = profile
+    return profile
+
+
+register_profile(OperatorProfile("expert"))
+register_profile(OperatorProfile("careful", speed=0.7, pos_noise=0.002, rot_noise=0.01))
+register_profile(
+    OperatorProfile("hasty", speed=1.4, pos_noise=0.006, rot_noise=0.03, plan_jitter_m=0.004, max_accel=1.2)
+)
+register_profile(OperatorProfile("noisy", pos_noise=0.008, rot_noise=0.04, plan_jitter_m=0.004))
+# the expert executing noisy actions while its own are recorded (noise injection, DART). MuJoCo 3.8.1, stiff
+# OSC_POSE, 10 seeds per training food: at 0.05 it succeeds 80-100% (pasta 80%, the expert 90%), 2 s slower;
+# at 0.1 it spills on the carry and cannot hold still (pasta 12%, buckwheat 38%), even with the hold noise-free
+register_profile(OperatorProfile("expert-dart", injected_noise=0.05))
+register_profile(
+    OperatorProfile(
         "spacemouse",
         speed=1.6,
         pos_noise=0.004,
@@ -103,8 +117,8 @@ PROFILES = {
         waypoint_tol_scale=2.0,
         phase_time_scale=1.5,
         let_go_tol_m=0.01,
-    ),
-}
+    )
+)
 
 
 @dataclass(frozen=True)

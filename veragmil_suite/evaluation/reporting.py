@@ -18,12 +18,11 @@ from pathlib import Path
 import numpy as np
 
 from veragmil_suite.evaluation.agents import MISSING, EpisodeRecord
+from veragmil_suite.learning.algorithms import ALGORITHMS
 from veragmil_suite.models.foods import TRAINING_FOODS
 
 SEEN_LABEL = "seen (training)"
 UNSEEN_LABEL = "unseen"
-# column names of the algorithms a study trains (veragmil_suite.study.settings.ALGO_CONFIGS)
-ALGO_LABELS = {"bc": "BC", "bc_rnn": "BC-RNN", "bcq": "BCQ", "diffusion_policy": "Diffusion Policy"}
 # 95% two-sided normal quantile, for the Wilson intervals of success rates
 WILSON_Z = 1.959964
 
@@ -398,7 +397,7 @@ def write_learning_curves(result, points: list[dict], out_dir: Path) -> None:
                 y = np.array([r[f"{key} success %"] for r in group])
                 err = np.array([[y_ - r[f"{key} ci95 low"], r[f"{key} ci95 high"] - y_] for y_, r in zip(y, group)]).T
                 seed_label = f", seed {seed}" if several_seeds else ""
-                name = f"{profile} {ALGO_LABELS[algo]} {obs} obs, {line} {line_label}{seed_label}, {key}"
+                name = f"{profile} {ALGORITHMS[algo].label} {obs} obs, {line} {line_label}{seed_label}, {key}"
                 ax.errorbar(x, y, yerr=err, fmt=style, capsize=3, label=name)
         ax.set_xscale("log")
         ax.minorticks_off()

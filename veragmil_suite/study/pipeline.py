@@ -31,7 +31,8 @@ import shutil
 import time
 from pathlib import Path
 
-from veragmil_suite.evaluation.reporting import ALGO_LABELS, write_learning_curves, write_seed_tables
+from veragmil_suite.evaluation.reporting import write_learning_curves, write_seed_tables
+from veragmil_suite.learning.algorithms import ALGORITHMS
 from veragmil_suite.study.record import (
     check_merged,
     check_recording,
@@ -252,7 +253,7 @@ def _train_runs(
         for run in todo:
             steps = f"{run['config']['train']['num_epochs']} x {settings.steps_per_epoch}"
             dataset = Path(run["config"]["train"]["data"]).name
-            label = f"{ALGO_LABELS[run['algo']]} ({run['obs_set']} obs)"
+            label = f"{ALGORITHMS[run['algo']].label} ({run['obs_set']} obs)"
             say(f"training {label} on {run['demos_per_food']} demos per food of {dataset} ({steps} gradient steps)")
             yield run["config"]
 

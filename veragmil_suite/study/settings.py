@@ -6,15 +6,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from veragmil_suite.evaluation.reporting import ALGO_LABELS
+from veragmil_suite.learning.algorithms import ALGORITHMS
 from veragmil_suite.learning.observation_sets import (
     DEFAULT_OBSERVATION_SET,
     check_observation_set,
 )
 from veragmil_suite.models.foods import TRAINING_FOODS, UNSEEN_FOODS, get_food
-
-# robomimic configs of configs/json per algorithm: the paper's three and Diffusion Policy (low-dim observations)
-ALGO_CONFIGS = {"bc": "bc", "bc_rnn": "bc_rnn", "bcq": "bcq", "diffusion_policy": "diffusion_policy"}
 
 # Seeds of recorded episodes and of evaluation episodes never meet: evaluation bowls are not training bowls.
 EVAL_SEED_OFFSET = 100_000
@@ -75,9 +72,9 @@ class PipelineSettings:
         from veragmil_suite.models.humanoid import check_robot
 
         check_robot(self.robot)
-        unknown = sorted(set(self.algos) - set(ALGO_CONFIGS))
+        unknown = sorted(set(self.algos) - set(ALGORITHMS))
         if unknown:
-            raise ValueError(f"unknown algorithm(s) {unknown}; accepted: {sorted(ALGO_CONFIGS)}")
+            raise ValueError(f"unknown algorithm(s) {unknown}; accepted: {sorted(ALGORITHMS)}")
         from veragmil_suite.devices.expert import get_profile
 
         for profile in self.profiles:
@@ -90,9 +87,9 @@ class PipelineSettings:
                 raise ValueError(f"{name} must be a positive integer, got {getattr(self, name)!r}")
         if not self.demos_per_food or self.demos_per_food[0] < 1:
             raise ValueError(f"demos_per_food must be positive integers, got {self.demos_per_food!r}")
-        unknown = sorted(set(self.algo_epochs) - set(ALGO_CONFIGS))
+        unknown = sorted(set(self.algo_epochs) - set(ALGORITHMS))
         if unknown:
-            raise ValueError(f"algo_epochs names unknown algorithm(s) {unknown}; accepted: {sorted(ALGO_CONFIGS)}")
+            raise ValueError(f"algo_epochs names unknown algorithm(s) {unknown}; accepted: {sorted(ALGORITHMS)}")
         for algo, epochs in self.algo_epochs.items():
             if int(epochs) < 1:
                 raise ValueError(f"algo_epochs of {algo} must be a positive integer, got {epochs!r}")
@@ -156,7 +153,7 @@ class PipelineSettings:
         """A trained checkpoint's column: profile, algorithm and observation set, plus demos and steps when the run
         sweeps them (or its algorithms train for different budgets), plus the training seed when there are several
         (without ``train_seed``: the recipe's label, which names all its seeds)."""
-        label = f"{profile} {ALGO_LABELS[algo]} {obs_set} obs"
+        label = f"{profile} {ALGORITHMS[algo].label} {obs_set} obs"
         label += f" {demos_per_food} demos" if len(self.demos_per_food) > 1 else ""
         label += f" {_steps_label(steps)} steps" if self.sweeps_steps else ""
         label += f" seed {train_seed}" if train_seed is not None and len(self.train_seeds) > 1 else ""

@@ -9,11 +9,12 @@ import os
 import shutil
 from pathlib import Path
 
+from veragmil_suite.learning.algorithms import ALGORITHMS
 from veragmil_suite.learning.observation_sets import (
     with_observation_set,
 )
 from veragmil_suite.study.logged_run import TRAINING_PROGRESS, LogProgress, console, run_logged
-from veragmil_suite.study.settings import ALGO_CONFIGS, ROBOMIMIC_TORCH_THREADS, StageError
+from veragmil_suite.study.settings import ROBOMIMIC_TORCH_THREADS, StageError
 from veragmil_suite.utils.asset_paths import config_path
 from veragmil_suite.utils.distributed import Resources
 
@@ -37,9 +38,9 @@ def training_config(
     Rollouts during training are off (the evaluation scores checkpoints on every food afterwards); the last epoch
     and ``save_epochs`` are saved.
     """
-    if algo not in ALGO_CONFIGS:
-        raise ValueError(f"unknown algorithm {algo!r}; accepted: {sorted(ALGO_CONFIGS)}")
-    with open(config_path(ALGO_CONFIGS[algo])) as f:
+    if algo not in ALGORITHMS:
+        raise ValueError(f"unknown algorithm {algo!r}; accepted: {sorted(ALGORITHMS)}")
+    with open(config_path(ALGORITHMS[algo].config)) as f:
         config = json.load(f)
     experiment = config["experiment"]
     experiment.update(name=name, epoch_every_n_steps=steps_per_epoch, validate=False, render_video=False)

@@ -232,9 +232,9 @@ def _profiles() -> list[str]:
 
 
 def _algos() -> list[str]:
-    from veragmil_suite.study.settings import ALGO_CONFIGS
+    from veragmil_suite.learning.algorithms import ALGORITHMS
 
-    return sorted(ALGO_CONFIGS)
+    return sorted(ALGORITHMS)
 
 
 def _observation_sets() -> list[str]:
