@@ -42,8 +42,8 @@ ROBOSUITE_ENV_TYPE = 1  # robomimic's EnvType.ROBOSUITE_TYPE
 WRITER = "veragmil_suite.recording"
 FORMAT_VERSION = 1
 DEMO_PREFIX = "demo_"
-# where older versions wrote a demo before moving it into data/ (a kill left it there): a root group, and before
-# that data/ under this prefix; what they left is removed at the next write or by veragmil-dataset-info --clean
+# where a file of an in-place writer holds a demo its killed writer never finished: the root group PENDING_GROUP,
+# or a data/ group under _PENDING_PREFIX; removed at the next write or by veragmil-dataset-info --clean
 PENDING_GROUP = "incomplete"
 _PENDING_PREFIX = "incomplete_"
 IMAGE_COMPRESSION = dict(compression="gzip", compression_opts=4, shuffle=True)

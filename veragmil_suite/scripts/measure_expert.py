@@ -125,7 +125,7 @@ def _label(run: dict) -> str:
     from veragmil_suite.models.scoop_task import PHYSICS_TIMESTEP_S
 
     solver = "".join(f", {k}={v}" for k, v in (run.get("solver") or {}).items())
-    # runs written before the step was an argument ran at 1/240 s
+    # a run that names no physics step ran at the task's default, 1/240 s
     step = f", step 1/{1 / run.get('physics_timestep_s', PHYSICS_TIMESTEP_S):.0f} s"
     return f"mujoco {run.get('mujoco', '?')}, sleep {run.get('sleep_tolerance') or 'off'}{step}{solver}"
 
