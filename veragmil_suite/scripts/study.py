@@ -24,6 +24,7 @@ import argparse
 import os
 import sys
 import time
+from dataclasses import fields
 
 from veragmil_suite.evaluation.agents import SPEC_HELP, parse_agent_argument
 from veragmil_suite.models.foods import TRAINING_FOODS, UNSEEN_FOODS
@@ -136,29 +137,17 @@ def add_pipeline_arguments(p: Parser, defaults: PipelineSettings) -> None:
 
 
 def settings_from_args(args: argparse.Namespace) -> PipelineSettings:
-    return PipelineSettings(
+    """The settings the options give: every PipelineSettings field an option of the same name sets, then the ones
+    an option gives in another form (the output folder, --robots, --algo-epochs pairs, --agent texts, --ray)."""
+    values = {f.name: getattr(args, f.name) for f in fields(PipelineSettings) if hasattr(args, f.name)}
+    values.update(
         output_dir=getattr(args, "output_dir", None) or os.path.join(args.output_base, time.strftime("%Y%m%d-%H%M%S")),
-        profiles=args.profiles,
-        algos=args.algos,
-        obs_sets=args.obs_sets,
-        train_foods=args.train_foods,
-        eval_foods=args.eval_foods,
-        demos_per_food=args.demos_per_food,
-        epochs=args.epochs,
-        steps_per_epoch=args.steps_per_epoch,
-        eval_steps=args.eval_steps,
-        algo_epochs=algo_epochs(args.algo_epochs),
-        episodes=args.episodes,
-        processes=args.processes,
-        horizon=args.horizon,
-        n_grains=args.n_grains,
         robot=args.robots,
-        seed=args.seed,
-        score_demonstrators=args.score_demonstrators,
-        train_seeds=args.train_seeds,
+        algo_epochs=algo_epochs(args.algo_epochs),
         agents=agent_columns(getattr(args, "agent", None), defaults=args.default_agents),
         ray=getattr(args, "ray", None),
     )
+    return PipelineSettings(**values)
 
 
 def algo_epochs(pairs: list[tuple[str, int]] | None) -> dict[str, int]:
