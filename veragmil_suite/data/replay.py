@@ -12,6 +12,7 @@ import numpy as np
 
 from veragmil_suite.data.schema import (
     DatasetError,
+    attr_text,
     demo_names,
     open_dataset,
     write_masks,
@@ -52,17 +53,13 @@ class DemoEnvs:
     def start(self, g: h5py.Group) -> tuple:
         """The demo's env, reset to its first state; returns (env, observation)."""
         env = self.for_demo(g)
-        obs = robomimic_obs.reset_to_demo(env, _text(g.attrs["model_file"]), g["states"][0])
+        obs = robomimic_obs.reset_to_demo(env, attr_text(g.attrs["model_file"]), g["states"][0])
         return env, obs
 
     def close(self) -> None:
         if self.env is not None:
             self.env.close()
             self.env = None
-
-
-def _text(value) -> str:
-    return value.decode() if isinstance(value, bytes) else str(value)
 
 
 def _render(env, camera: str, height: int, width: int) -> np.ndarray:
@@ -189,7 +186,7 @@ def render_observations(
         data_out = fout.create_group("data")
         for key, value in data_in.attrs.items():
             data_out.attrs[key] = value
-        data_out.attrs["env_args"] = _with_cameras(_text(data_in.attrs["env_args"]), overrides)
+        data_out.attrs["env_args"] = _with_cameras(attr_text(data_in.attrs["env_args"]), overrides)
         envs = DemoEnvs(fin, **overrides)
         try:
             for name in names:
@@ -204,7 +201,7 @@ def render_observations(
                 for key, value in g.attrs.items():
                     out.attrs[key] = value
                 if "env_args" in g.attrs:
-                    out.attrs["env_args"] = _with_cameras(_text(g.attrs["env_args"]), overrides)
+                    out.attrs["env_args"] = _with_cameras(attr_text(g.attrs["env_args"]), overrides)
                 executed = g["executed_actions" if "executed_actions" in g else "actions"][()]
                 images = _render_images(env, g["states"][()], executed)
                 for group in ("obs", "next_obs"):

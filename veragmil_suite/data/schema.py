@@ -309,7 +309,8 @@ def split_demos(names: list[str], valid_ratio: float, seed: int = 0) -> tuple[li
     return [x for i, x in enumerate(names) if i not in valid], [x for i, x in enumerate(names) if i in valid]
 
 
-def text(value) -> str:
+def attr_text(value) -> str:
+    """An HDF5 attribute as text (h5py gives bytes or str)."""
     return value.decode() if isinstance(value, bytes) else str(value)
 
 

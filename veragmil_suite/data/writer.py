@@ -30,13 +30,13 @@ from veragmil_suite.data.schema import (
     IMAGE_COMPRESSION,
     WRITER,
     DatasetError,
+    attr_text,
     canonical,
     demo_names,
     open_dataset,
     refresh_summary,
     remove_interrupted_writes,
     seeds_used,
-    text,
 )
 
 
@@ -303,7 +303,7 @@ def demo_problems(g: h5py.Group, limit: float) -> list[str]:
     actions = g["actions"][()]
     if actions.size and np.abs(actions).max() > limit:
         problems.append(f"actions outside the action space (|a| up to {np.abs(actions).max():g}, limit {limit:g})")
-    if text(g.attrs.get("end_reason", "")) == "physics" and not text(g.attrs.get("physics_error", "")):
+    if attr_text(g.attrs.get("end_reason", "")) == "physics" and not attr_text(g.attrs.get("physics_error", "")):
         problems.append("ended at a physics error but its physics_error is empty")
     return problems
 

@@ -354,7 +354,7 @@ def env_metadata(path: str) -> dict:
 
 def dataset_episodes(name: str, path: str, foods: list[str]) -> list[EpisodeRecord]:
     """A recorded dataset's demos as episode records (their stored metrics), for the foods evaluated."""
-    from veragmil_suite.data.schema import demo_names, open_dataset
+    from veragmil_suite.data.schema import attr_text, demo_names, open_dataset
 
     out = []
     with open_dataset(path) as f:
@@ -363,7 +363,7 @@ def dataset_episodes(name: str, path: str, foods: list[str]) -> list[EpisodeReco
         counts: dict[str, int] = {}
         for demo in demo_names(f):
             a = data[demo].attrs
-            food = _text(a.get("food", file_food))
+            food = attr_text(a.get("food", file_food))
             if food not in foods:
                 continue
             index = counts[food] = counts.get(food, -1) + 1
@@ -379,11 +379,11 @@ def dataset_episodes(name: str, path: str, foods: list[str]) -> list[EpisodeReco
                     spilled_volume_cm3=float(a.get("spilled_volume_cm3", 0.0)),
                     completion_time_s=float(a.get("completion_time_s", 0.0)),
                     steps=steps,
-                    end_reason=_text(a.get("end_reason", "recorded")),
-                    physics_error=_text(a.get("physics_error", "")),
+                    end_reason=attr_text(a.get("end_reason", "recorded")),
+                    physics_error=attr_text(a.get("physics_error", "")),
                     grains_in_spoon=int(a.get("grains_in_spoon", 0)),
                     spill_fraction=float(a.get("spill_fraction", 0.0)),
-                    stage=_text(a.get("stage", MISSING)),
+                    stage=attr_text(a.get("stage", MISSING)),
                     peak_grains_in_spoon=None,
                     wall_s=0.0,
                     spilled_mass_g=float(a.get("spilled_mass_g", math.nan)),
@@ -391,7 +391,3 @@ def dataset_episodes(name: str, path: str, foods: list[str]) -> list[EpisodeReco
                 )
             )
     return out
-
-
-def _text(value) -> str:
-    return value.decode() if isinstance(value, bytes) else str(value)
