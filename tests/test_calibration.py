@@ -12,7 +12,7 @@ from veragmil_suite.calibration.lifting_cylinder import heap_angles, lifting_cyl
 from veragmil_suite.calibration.slope import slope_travel_m
 from veragmil_suite.calibration.spoonful import dish_volume_m3
 from veragmil_suite.models.dish import DishShape
-from veragmil_suite.models.foods import FOODS, PHYSICS, check_physics
+from veragmil_suite.models.foods import FOODS, PHYSICS, GrainModel, check_physics
 
 # Heap angle (degrees) the benchmark's quick lifting-cylinder test of a calibrated food must exceed: Table I's grains
 # measure 4-8 degrees there, the calibrated ones 17-23 (results/calibration/quick.txt); the published angles are
@@ -67,6 +67,31 @@ def test_grain_dimensions_match_the_reference(food):
         pytest.skip(f"no published dimensions for {food}")
     built = np.array(grain_dims_mm(spec, "calibrated"))
     assert built == pytest.approx(np.array(spec.reference.grain_dims_mm), rel=0.3)
+
+
+@pytest.mark.parametrize(
+    "aspect", [(0.45,), (0.42, 3, 0.0), (0.42, 3, 0.5), (0.30, 4, 0.5)], ids=["pair", "chain", "bent3", "bent4"]
+)
+def test_sphere_chain_volume_is_the_union_of_its_spheres(aspect):
+    """piece_volume_m3 (packing fractions, densities from grain masses) against a Monte Carlo count of the points
+    inside any of the grain's spheres."""
+    shape = "sphere_pair" if len(aspect) == 1 else "sphere_chain"
+    grain = GrainModel(shape, (0.006, 0.006), aspect, 1000.0, 0.5, 0.1)
+    centres = np.array([g["pos"] for g in grain.grain_geoms(0.006)])
+    r = grain.grain_geoms(0.006)[0]["size"][0]
+    lo, hi = centres.min(axis=0) - r, centres.max(axis=0) + r
+    points = np.random.default_rng(0).uniform(lo, hi, size=(400_000, 3))
+    inside = (np.linalg.norm(points[:, None, :] - centres[None], axis=2) < r).any(axis=1)
+    assert grain.piece_volume_m3() == pytest.approx(inside.mean() * np.prod(hi - lo), rel=0.01)
+
+
+def test_a_bent_chain_lies_flat_and_centred():
+    """Every other sphere sits to the side: wider than thick, so the grain cannot roll about its long axis."""
+    grain = FOODS["rice"].grain("calibrated")
+    centres = np.array([g["pos"] for g in grain.grain_geoms(grain.mean_size_m)])
+    length, width, thickness = grain_dims_mm(FOODS["rice"], "calibrated")
+    assert width > 1.1 * thickness and length > 1.5 * width
+    assert np.abs(centres.mean(axis=0)).max() < 1e-12
 
 
 def test_table1_physics_still_builds():

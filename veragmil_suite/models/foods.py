@@ -4,10 +4,11 @@ Each food carries two grain models and the measurements they answer to:
 
 - ``table1``: Table I of the VERAGMIL paper (shape, size range, friction, restitution, density) mapped to cheap MuJoCo
   geometry, as every result before the calibration was made (``physics="table1"``).
-- ``calibrated``: grains that heap, pack and weigh like the real food (``physics="calibrated"``, the default): real
-  dimensions, a density that gives the measured grain mass, measured seed friction, rolling and torsional friction
-  (condim 6) and a contact margin that stops soft contacts over-packing. ``python -m veragmil_suite.calibration``
-  measures both against ``reference``.
+- ``calibrated``: grains that heap, pack and weigh like the real food (``physics="calibrated"``): real dimensions, a
+  density that gives the measured grain mass, measured seed friction, a contact margin that stops soft contacts
+  over-packing, and resistance to rolling: by shape where the grain can have one (rice, barley and pasta as bent
+  sphere chains, buckwheat as a triangle: no extra solver rows, condim 3), else by rolling and torsional friction
+  (condim 6: peas, beans, flakes). ``python -m veragmil_suite.calibration`` measures both against ``reference``.
 - ``reference``: published measurements (angle of repose, bulk density, grain mass and dimensions), each with its
   source; a missing source is ``None`` and the benchmark says so.
 
@@ -19,7 +20,9 @@ shape             MuJoCo geometry
 sphere            one sphere of diameter ``size``
 sphere_pair       two overlapping spheres of radius ``aspect[0] * size / 2`` spanning ``size``
 sphere_chain      ``aspect[1]`` overlapping spheres of radius ``aspect[0] * size / 2`` in a line spanning ``size``
-                  (a slim grain that interlocks; sphere contacts are analytic, 10x cheaper than ellipsoids)
+                  (a slim grain that interlocks; sphere contacts are analytic, 10x cheaper than ellipsoids);
+                  an optional ``aspect[2]`` bends the line: every other sphere sits that many radii to the side,
+                  so the grain lies flat and resists rolling by its shape (no rolling rows)
 spheres_triangle  three spheres in a triangle (a rounded triangular seed)
 capsule           a capsule of radius ``aspect[0] * size / 2`` (a short tube seen from the outside)
 ellipsoid         an ellipsoid of semi-axes ``size/2 * (1, aspect[0], aspect[1])``
@@ -111,8 +114,12 @@ class GrainModel:
             raise ValueError("friction, density_kg_m3 and default_grains must be positive")
         if min(self.rolling_friction_m, self.torsional_friction_m, self.margin_m) < 0:
             raise ValueError("rolling_friction_m, torsional_friction_m and margin_m must be at least 0")
-        if self.shape == "sphere_chain" and (len(self.aspect) != 2 or int(self.aspect[1]) < 2):
-            raise ValueError(f"sphere_chain takes aspect (width fraction, spheres >= 2), got {self.aspect}")
+        if self.shape == "sphere_chain" and (
+            len(self.aspect) not in (2, 3) or int(self.aspect[1]) < 2 or min(self.aspect[2:], default=0) < 0
+        ):
+            raise ValueError(
+                f"sphere_chain takes aspect (width fraction, spheres >= 2[, bend >= 0]), got {self.aspect}"
+            )
 
     @property
     def condim(self) -> int:
@@ -163,11 +170,12 @@ class GrainModel:
         if self.shape == "box":
             return s * (s * self.aspect[0]) * (s * self.aspect[1])
         if self.shape in ("sphere_pair", "sphere_chain"):
-            n = 2 if self.shape == "sphere_pair" else int(self.aspect[1])
+            centres = self._chain_centres(s)
             r = self.aspect[0] * s / 2
-            d = (s - 2 * r) / (n - 1)  # distance of neighbouring centres; a lens counted twice where d < 2r
-            lens = math.pi * (4 * r + d) * (2 * r - d) ** 2 / 12 if d < 2 * r else 0.0
-            return n * 4 / 3 * math.pi * r**3 - (n - 1) * lens
+            # each neighbouring pair's lens counted twice (spheres two apart do not meet in the catalog's grains)
+            d = np.linalg.norm(np.diff(centres, axis=0), axis=1)
+            lens = np.where(d < 2 * r, math.pi * (4 * r + d) * (2 * r - d) ** 2 / 12, 0.0)
+            return float(len(centres) * 4 / 3 * math.pi * r**3 - lens.sum())
         if self.shape == "spheres_triangle":
             r = _triangle_sphere_radius(s)
             return 3 * 4 / 3 * math.pi * r**3
@@ -188,11 +196,8 @@ class GrainModel:
             a = s / 2
             return [dict(type=self.shape, size=(a, a * self.aspect[0], a * self.aspect[1]), pos=(0, 0, 0), quat=ident)]
         if self.shape in ("sphere_pair", "sphere_chain"):
-            n = 2 if self.shape == "sphere_pair" else int(self.aspect[1])
             r = self.aspect[0] * s / 2
-            return [
-                dict(type="sphere", size=(r,), pos=(x, 0, 0), quat=ident) for x in np.linspace(r - s / 2, s / 2 - r, n)
-            ]
+            return [dict(type="sphere", size=(r,), pos=tuple(c), quat=ident) for c in self._chain_centres(s)]
         if self.shape == "spheres_triangle":
             r = _triangle_sphere_radius(s)
             c = (s - 2 * r) / math.sqrt(3)  # circumradius of the triangle of sphere centres
@@ -210,6 +215,18 @@ class GrainModel:
             dict(type="ellipsoid", size=axes, pos=(half * 0.9, 0, 0), quat=q),
             dict(type="ellipsoid", size=axes, pos=(-half * 0.9, 0, 0), quat=q_neg),
         ]
+
+    def _chain_centres(self, size_m: float) -> np.ndarray:
+        """Sphere centres (n, 3) of a sphere_pair or sphere_chain grain of longest dimension ``size_m``, centred on
+        their mean so that the body's origin is the grain's centre."""
+        n = 2 if self.shape == "sphere_pair" else int(self.aspect[1])
+        r = self.aspect[0] * size_m / 2
+        bend = self.aspect[2] if self.shape == "sphere_chain" and len(self.aspect) > 2 else 0.0
+        centres = np.zeros((n, 3))
+        centres[:, 0] = np.linspace(r - size_m / 2, size_m / 2 - r, n)
+        centres[1::2, 1] = bend * r
+        centres[:, 1] -= centres[:, 1].mean()
+        return centres
 
 
 def _triangle_sphere_radius(size_m: float) -> float:
@@ -362,12 +379,15 @@ _REFERENCE = {
 _CALIBRATED: dict[str, GrainModel] = {
     # name: GrainModel(shape, size range m, aspect, density kg/m^3, friction, restitution, rolling m, torsional m,
     #                  margin m, default grains)
-    "rice": GrainModel("sphere_pair", (0.005, 0.007), (0.45,), 1065.0, 0.50, 0.10, 5e-4, 1e-3, 1e-4, 200),
-    # buckwheat's three-sphere grain resists rolling and spin by its shape: condim 3 (no rolling or torsional rows);
-    # with them (condim 6) CG did not converge in 60 iterations under the spoon and threw grains (RUN.md)
+    "rice": GrainModel("sphere_chain", (0.005, 0.007), (0.42, 3, 0.5), 935.0, 0.50, 0.10, 0.0, 0.0, 1e-4, 200),
+    # Rice, buckwheat, barley and pasta resist rolling and spin by their shape (a bent chain lies flat; a triangle has
+    # no round axis): condim 3, half the solver rows of condim 6. With rolling and torsional rows CG did not converge
+    # under the spoon and threw buckwheat; straight rice and barley pairs and pasta capsules rolled without them, and
+    # the capsules dropped more pasta off the spoon (RUN.md). Pasta's density gives the 755 mg of the hollow tube it
+    # stands for (650 kg/m^3 in a capsule's volume).
     "buckwheat": GrainModel("spheres_triangle", (0.004, 0.006), (), 640.0, 0.50, 0.10, 0.0, 0.0, 1e-4, 150),
-    "barley": GrainModel("sphere_pair", (0.008, 0.012), (0.40,), 655.0, 0.50, 0.15, 5e-4, 1e-3, 1e-4, 120),
-    "pasta": GrainModel("capsule", (0.020, 0.035), (0.28,), 650.0, 0.45, 0.10, 5e-4, 1e-3, 1e-4, 40),
+    "barley": GrainModel("sphere_chain", (0.008, 0.012), (0.30, 4, 0.5), 843.0, 0.50, 0.15, 0.0, 0.0, 1e-4, 120),
+    "pasta": GrainModel("sphere_chain", (0.020, 0.035), (0.28, 4, 0.5), 800.0, 0.45, 0.10, 0.0, 0.0, 1e-4, 40),
     "peas": GrainModel("sphere", (0.006, 0.008), (), 1120.0, 0.40, 0.20, 2e-4, 5e-4, 1e-4, 150),
     "beans": GrainModel("ellipsoid", (0.010, 0.018), (0.65, 0.5), 1265.0, 0.50, 0.20, 5e-4, 1e-3, 1e-4, 60),
     "flakes": GrainModel("flake_pair", (0.012, 0.020), (0.8, 0.12, 20.0), 250.0, 0.50, 0.05, 5e-4, 1e-3, 1e-4, 80),
@@ -414,7 +434,8 @@ BOWL_SURFACE = Surface(friction=0.1, density_kg_m3=2400.0)  # glazed ceramic
 BOWL_FOOT_SURFACE = Surface(friction=1.0, density_kg_m3=2400.0)  # unglazed foot ring on a table: the bowl stays
 TABLE_SURFACE = Surface(friction=0.1, density_kg_m3=700.0)  # a spilled grain keeps its own friction on the table
 # The spoon's contact spring by physics (MuJoCo solref: time constant s, damping ratio; None: MuJoCo's mix of the two
-# geoms'). It stands in for the give of a spoon held in a hand or an arm: driven stiffly through calibrated rice
-# against the bowl, a rigid spoon squeezed grains until the solver threw 20-90 of them out of the bowl; at 0.05 s it
-# threw none and scooped 48-56 grains (results/calibration/RUN.md).
-SPOON_CONTACT_SOLREF: dict[str, tuple[float, float] | None] = {"table1": None, "calibrated": (0.05, 1.0)}
+# geoms'). It stands in for the give of a spoon held in a hand or an arm: driven stiffly through a calibrated pile
+# against the bowl, a rigid spoon squeezes grains until the solver throws them. 0.03 s throws none with the catalog's
+# grains and holds a level spoonful of rice as the real spoon does (5.3 g); 0.05 s let grains slide off its walls
+# (1.9 g) (results/calibration/RUN.md).
+SPOON_CONTACT_SOLREF: dict[str, tuple[float, float] | None] = {"table1": None, "calibrated": (0.03, 1.0)}
