@@ -26,6 +26,7 @@ hand-to-frame latency and where it goes.
    that step finished. A headset adds its own decode and display: up to one 90 Hz display frame (11 ms).
 
     python benchmarks/bench_vr.py --sections 5 --trials 200   # hand-to-frame only, about 200 moves per schedule
+    python benchmarks/bench_vr.py --sections 5 --physics calibrated   # on the calibrated grains
 """
 
 from __future__ import annotations
@@ -51,12 +52,17 @@ from veragmil_suite.devices import VRDevice, VRServerOptions, VRStreamOptions  #
 from veragmil_suite.devices.vr.client import HAND, Client, controller, pose_message, ws_url  # noqa: E402
 from veragmil_suite.devices.vr.protocol import unpack_frame  # noqa: E402
 from veragmil_suite.devices.vr.render import Renderer, depth_colormap, encode_jpeg  # noqa: E402
+from veragmil_suite.models.foods import PHYSICS  # noqa: E402
 
 
-def make(env_name: str, control_freq: int = 20):
+def make(env_name: str, control_freq: int = 20, physics: str | None = None):
+    """The benchmarked environment; ``physics`` (ScoopGranular's, veragmil_suite.models.foods.PHYSICS) None: its
+    default."""
     kwargs = dict(robots="XArm7", has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False)
     if env_name == "ScoopGranular":
         kwargs.update(food="rice", pile_variants=1)
+        if physics is not None:
+            kwargs.update(physics=physics)
     env = robosuite.make(env_name, control_freq=control_freq, ignore_done=True, **kwargs)
     env.reset()
     return env
@@ -343,10 +349,10 @@ def _summary(values) -> str:
     return f"{np.median(v):6.1f} {np.percentile(v, 90):6.1f} {v.max():6.1f}"
 
 
-def bench_hand_to_frame(trials: int, env_name: str = "ScoopGranular") -> None:
+def bench_hand_to_frame(trials: int, env_name: str = "ScoopGranular", physics: str | None = None) -> None:
     """Both frame schedules in turn, SWITCH_S each, with one client throughout: a machine whose load changes
     affects both alike. A move counts for the schedule in force from just before it to its frame."""
-    env = make(env_name)
+    env = make(env_name, physics=physics)
     camera = "overhead" if env_name == "ScoopGranular" else "agentview"
     device = VRDevice(env, server=VRServerOptions(port=0), camera_name=camera, verbose=False)
     schedules = {True: "after each control step", False: "on a 30 fps clock"}
@@ -433,6 +439,7 @@ def main() -> None:
     p.add_argument("--trials", type=int, default=100, help="hand moves per frame schedule in the hand-to-frame run")
     p.add_argument("--sections", default="1,2,3,4,5", help="which sections to run, e.g. 5 or 1,3")
     p.add_argument("--env", default="ScoopGranular", help="hand-to-frame: the task (Lift: a cheaper simulation)")
+    p.add_argument("--physics", choices=PHYSICS, help="hand-to-frame: ScoopGranular's physics (default: the task's)")
     args = p.parse_args()
     sections = {int(x) for x in args.sections.split(",")}
     print(f"{os.cpu_count()} CPUs, MUJOCO_GL={os.environ['MUJOCO_GL']}, load average {os.getloadavg()[0]:.2f}")
@@ -449,7 +456,7 @@ def main() -> None:
         bench_stream("ScoopGranular", 20, args.seconds, depth=False)
         bench_stream("ScoopGranular", 60, args.seconds)
     if 5 in sections:
-        bench_hand_to_frame(args.trials, args.env)
+        bench_hand_to_frame(args.trials, args.env, args.physics)
     print(f"load average at the end {os.getloadavg()[0]:.2f} (other processes share the CPUs: figures are theirs too)")
 
 

@@ -379,16 +379,16 @@ _REFERENCE = {
 _CALIBRATED: dict[str, GrainModel] = {
     # name: GrainModel(shape, size range m, aspect, density kg/m^3, friction, restitution, rolling m, torsional m,
     #                  margin m, default grains)
-    "rice": GrainModel("sphere_chain", (0.005, 0.007), (0.42, 3, 0.5), 935.0, 0.50, 0.10, 0.0, 0.0, 1e-4, 200),
+    "rice": GrainModel("sphere_chain", (0.005, 0.007), (0.42, 3, 0.5), 975.0, 0.50, 0.10, 0.0, 0.0, 1e-4, 200),
     # Rice, buckwheat, barley and pasta resist rolling and spin by their shape (a bent chain lies flat; a triangle has
     # no round axis): condim 3, half the solver rows of condim 6. With rolling and torsional rows CG did not converge
     # under the spoon and threw buckwheat; straight rice and barley pairs and pasta capsules rolled without them, and
     # the capsules dropped more pasta off the spoon (RUN.md). Pasta's density gives the 755 mg of the hollow tube it
     # stands for (650 kg/m^3 in a capsule's volume).
     "buckwheat": GrainModel("spheres_triangle", (0.004, 0.006), (), 640.0, 0.50, 0.10, 0.0, 0.0, 1e-4, 150),
-    "barley": GrainModel("sphere_chain", (0.008, 0.012), (0.30, 4, 0.5), 843.0, 0.50, 0.15, 0.0, 0.0, 1e-4, 120),
+    "barley": GrainModel("sphere_chain", (0.008, 0.010), (0.30, 4, 0.5), 1156.0, 0.50, 0.15, 0.0, 0.0, 1e-4, 120),
     "pasta": GrainModel("sphere_chain", (0.020, 0.035), (0.28, 4, 0.5), 800.0, 0.45, 0.10, 0.0, 0.0, 1e-4, 40),
-    "peas": GrainModel("sphere", (0.006, 0.008), (), 1120.0, 0.40, 0.20, 2e-4, 5e-4, 1e-4, 150),
+    "peas": GrainModel("sphere", (0.006, 0.008), (), 1120.0, 0.40, 0.20, 1e-3, 5e-4, 1e-4, 150),
     "beans": GrainModel("ellipsoid", (0.010, 0.018), (0.65, 0.5), 1265.0, 0.50, 0.20, 5e-4, 1e-3, 1e-4, 60),
     "flakes": GrainModel("flake_pair", (0.012, 0.020), (0.8, 0.12, 20.0), 250.0, 0.50, 0.05, 5e-4, 1e-3, 1e-4, 80),
 }
