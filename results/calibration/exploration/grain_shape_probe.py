@@ -29,6 +29,7 @@ parser.add_argument("changes", nargs="?", default="{}")
 parser.add_argument("--mass-mg", type=float)
 parser.add_argument("--seeds", default="0,1,2")
 parser.add_argument("--skip", default="")
+parser.add_argument("--cyl-seeds", default="0", help="lifting cylinder fills, comma-separated seeds")
 parser.add_argument("--scale", type=float, default=0.7, help="lifting cylinder size against the standard tube")
 parser.add_argument("--solver", default=None, help="physics_solver_options changes (JSON)")
 args = parser.parse_args()
@@ -48,15 +49,17 @@ if "slope" not in skip:
     for deg in (5.0, 8.0):
         print(f"slope {deg:.0f} deg: {1000 * slope_travel_m(spec, 'calibrated', deg):.3f} mm in 2 s", flush=True)
 if "cylinder" not in skip:
-    t = time.time()
-    r = lifting_cylinder(spec, "calibrated", seed=0, solver_options=solver, scale=args.scale)
-    d = r.as_dict()
-    print(
-        f"cylinder {args.scale}x: fit {d['angle_slope_fit_deg']:.1f} h/b {d['angle_height_base_deg']:.1f} bulk "
-        f"{d['bulk_density_g_cm3']:.2f} packing {d['packing_fraction']:.2f} grains {d['n_grains']} "
-        f"mass {d['grain_mass_mg']:.1f} mg settled {d['settled']} wall {time.time() - t:.0f} s",
-        flush=True,
-    )
+    for cyl_seed in [int(x) for x in args.cyl_seeds.split(",")]:
+        t = time.time()
+        r = lifting_cylinder(spec, "calibrated", seed=cyl_seed, solver_options=solver, scale=args.scale)
+        d = r.as_dict()
+        print(
+            f"cylinder {args.scale}x seed {cyl_seed}: fit {d['angle_slope_fit_deg']:.1f} h/b "
+            f"{d['angle_height_base_deg']:.1f} bulk {d['bulk_density_g_cm3']:.2f} packing {d['packing_fraction']:.2f} "
+            f"grains {d['n_grains']} mass {d['grain_mass_mg']:.1f} mg settled {d['settled']} "
+            f"wall {time.time() - t:.0f} s",
+            flush=True,
+        )
 if "expert" not in skip:
     env = make_env(args.food, physics="calibrated", pile_variants=3, physics_solver_options=solver)
     m = env.sim.model._model
