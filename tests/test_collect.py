@@ -508,3 +508,26 @@ def test_the_script_runs_the_same_by_path_as_a_module_and_as_veragmil_collect(tm
         for key in ("actions", "states"):
             np.testing.assert_array_equal(a["data/demo_0"][key][()], b["data/demo_0"][key][()])
             np.testing.assert_array_equal(a["data/demo_0"][key][()], c["data/demo_0"][key][()])
+
+
+def test_the_physics_is_recorded_by_name_and_a_file_keeps_one_physics(tmp_path, capsys):
+    """--physics picks the grain models; the dataset names them, and demos of another physics are not appended."""
+    out = tmp_path / "calibrated.hdf5"
+    args = ["--device", "scripted", *LIGHT, "--cameras", "--keep", "all", "--horizon", "10", "--output", str(out)]
+    assert collect.main([*args, "--episodes", "1", "--physics", "calibrated"]) == 0
+    with open_dataset(out) as f:
+        kwargs = json.loads(f["data"].attrs["env_args"])["env_kwargs"]
+        demo = (
+            json.loads(f["data"]["demo_0"].attrs["env_args"])["env_kwargs"]
+            if "env_args" in f["data"]["demo_0"].attrs
+            else kwargs
+        )
+    assert kwargs["physics"] == demo["physics"] == "calibrated"
+    before = out.read_bytes()
+    capsys.readouterr()
+    assert collect.main([*args, "--episodes", "1", "--physics", "table1"]) == 2
+    assert "physics" in capsys.readouterr().err
+    assert out.read_bytes() == before  # nothing recorded is lost or changed
+    assert collect.main([*args, "--episodes", "1", "--physics", "sand"]) == 2
+    err = capsys.readouterr().err
+    assert "sand" in err and "calibrated" in err and "table1" in err

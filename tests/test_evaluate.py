@@ -32,9 +32,10 @@ PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 # episodes.csv as published results and scripts read it: EpisodeRecord's fields, in order
 EPISODES_CSV_HEADER = (
     "agent,food,episode,seed,success,grains_spilled,spilled_volume_cm3,completion_time_s,steps,end_reason,"
-    "physics_error,grains_in_spoon,spill_fraction,stage,peak_grains_in_spoon,wall_s,spilled_mass_g,spoon_mass_g"
+    "physics_error,grains_in_spoon,spill_fraction,stage,peak_grains_in_spoon,wall_s,spilled_mass_g,spoon_mass_g,"
+    "physics"
 )
-EPISODES_CSV_ROW = "A,rice,0,0,True,2,0.2,10.0,200,success,,3,0.0,held,3,1.0,nan,nan"
+EPISODES_CSV_ROW = "A,rice,0,0,True,2,0.2,10.0,200,success,,3,0.0,held,3,1.0,nan,nan,table1"
 # one line of episodes.jsonl, the journal a resumed run reads back
 JOURNAL_LINE = (
     '{"key": "[\\"expert\\", \\"expert\\", \\"pasta\\", 0, 80, {\\"n_grains\\": 12, \\"pile_variants\\": 1}]", '
@@ -43,8 +44,9 @@ JOURNAL_LINE = (
     '"grains_in_spoon": 12, "spill_fraction": 0.0, "stage": "loaded spoon", "peak_grains_in_spoon": 12, '
     '"wall_s": 1.3754890439995506}}'
 )
-# the same episode as written since grams are recorded (unknown in a journal of before: null)
-JOURNAL_LINE_NOW = JOURNAL_LINE[:-2] + ', "spilled_mass_g": null, "spoon_mass_g": null}}'
+# the same episode as written since grams and the physics are recorded (grams unknown in a journal of before: null;
+# its physics the one every episode ran on before the choice, table1)
+JOURNAL_LINE_NOW = JOURNAL_LINE[:-2] + ', "spilled_mass_g": null, "spoon_mass_g": null, "physics": "table1"}}'
 
 
 def _run(*args, timeout=300):
@@ -150,7 +152,9 @@ def test_summary_and_tables_match_a_hand_computed_case(tmp_path):
     assert Path(paths["episodes.csv"]).read_text().splitlines()[:2] == [EPISODES_CSV_HEADER, EPISODES_CSV_ROW]
     saved = json.loads(Path(paths["results.json"]).read_text())
     assert list(saved["episodes"][0]) == EPISODES_CSV_HEADER.split(",")
-    assert len(saved["episodes"]) == len(HAND_CASE) and saved["config"] == {"seed": 0}
+    assert saved["config"]["physics"] == ["table1"]  # records that name none ran before the physics had a name
+    assert lines[-1] == "Physics (grain models, veragmil_suite.models.foods): table1"
+    assert len(saved["episodes"]) == len(HAND_CASE) and saved["config"] == {"seed": 0, "physics": ["table1"]}
     assert episodes[2]["stage"] == "reached pile" and episodes[0]["stage"] == "held"
     with open(paths["stages.csv"]) as f:
         stage_rows = {(r["agent"], r["food"]): r for r in csv.DictReader(f)}

@@ -256,6 +256,8 @@ def test_a_killed_study_resumes_and_skips_every_finished_piece(tmp_path):
 
     again = _run("veragmil-study", *args)
     assert again.returncode == 0, again.stdout[-3000:] + again.stderr[-3000:]
+    config = json.loads((out / "eval" / "results.json").read_text())["config"]
+    assert config["env_kwargs"]["physics"] == "table1" and config["physics"] == ["table1"]  # every agent on it
     said = again.stdout
     assert "skipping recording expert pasta" in said
     assert "skipping training expert_bc_1demos_10steps" in said and "skipping training expert_bc_2demos_10steps" in said
@@ -369,3 +371,18 @@ def test_a_shorter_recording_is_continued_to_the_demos_one_run_records(tmp_path)
             assert (a["data"][name]["states"][:] == b["data"][name]["states"][:]).all()
     with pytest.raises(StageError, match="recorded with other settings: n_grains 12 \\(asked: 10\\)"):
         record_food(grown, demos=4, **dict(kwargs, n_grains=10))
+    with pytest.raises(StageError, match="physics 'table1' \\(asked: 'calibrated'\\)"):
+        record_food(grown, demos=4, **dict(kwargs, physics="calibrated"))
+
+
+def test_a_study_records_on_its_physics(tmp_path):
+    """The physics reaches the recorder's command and is refused when unknown (the evaluation's: the killed-study
+    test)."""
+    from veragmil_suite.study.settings import PipelineSettings
+
+    with pytest.raises(ValueError, match="accepted physics: calibrated, table1"):
+        PipelineSettings(output_dir=str(tmp_path), physics="sand")
+    path = tmp_path / "rice.hdf5"
+    assert record_food(path, "pasta", demos=1, n_grains=12, horizon=250, physics="calibrated") > 0
+    with h5py.File(path) as f:
+        assert json.loads(f["data"].attrs["env_args"])["env_kwargs"]["physics"] == "calibrated"

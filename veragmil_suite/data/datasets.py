@@ -16,12 +16,12 @@ import numpy as np
 
 from veragmil_suite.data import safe_hdf5
 from veragmil_suite.data.schema import (
-    COMPATIBLE_KWARGS,
     DamagedDataset,
     DatasetError,
     check_demo,
     demo_names,
     env_kwargs_variants,
+    incompatible_kwargs,
     interrupted_writes,
     open_dataset,
     refresh_summary,
@@ -30,7 +30,6 @@ from veragmil_suite.data.schema import (
     write_masks,
 )
 from veragmil_suite.data.writer import action_limit, demo_problems, updated_file, write_lock
-from veragmil_suite.utils.canonical import canonical
 
 
 def dataset_summary(path: str | Path) -> dict:
@@ -185,11 +184,7 @@ def merge_datasets(inputs: list[str | Path], output: str | Path, valid_ratio: fl
                     for key, value in data_in.attrs.items():
                         data_out.attrs[key] = value
                 else:
-                    differ = [
-                        k
-                        for k in COMPATIBLE_KWARGS
-                        if canonical(meta["env_kwargs"].get(k)) != canonical(first_meta["env_kwargs"].get(k))
-                    ]
+                    differ = incompatible_kwargs(meta["env_kwargs"], first_meta["env_kwargs"])
                     if differ:
                         raise DatasetError(f"{path} was recorded with other {', '.join(differ)} than {inputs[0]}")
                 if obs is not None:

@@ -33,7 +33,7 @@ import numpy as np
 import robosuite
 
 import veragmil_suite
-from veragmil_suite.models.foods import DEFAULT_PHYSICS
+from veragmil_suite.models.foods import DEFAULT_PHYSICS, with_recorded_physics
 from veragmil_suite.utils.canonical import canonical
 
 ENV_NAME = "ScoopGranular"
@@ -50,7 +50,16 @@ IMAGE_COMPRESSION = dict(compression="gzip", compression_opts=4, shuffle=True)
 # the key of data's env_args that lists the env_kwargs its demos differ in (env_kwargs_variants)
 VARIANTS_KEY = "env_kwargs_variants"
 # env_kwargs that must agree for demos to share a file: they fix the action and observation spaces
-COMPATIBLE_KWARGS = ("robots", "controller_configs", "control_freq", "camera_names", "camera_heights", "camera_widths")
+# env_kwargs every demo of one dataset shares (a policy trains on one robot, controller, rate, camera and physics)
+COMPATIBLE_KWARGS = (
+    "robots",
+    "controller_configs",
+    "control_freq",
+    "camera_names",
+    "camera_heights",
+    "camera_widths",
+    "physics",
+)
 METRIC_KEYS = (
     "success",
     "grains_in_spoon",
@@ -92,6 +101,13 @@ def env_meta(env_kwargs: dict) -> dict:
     except TypeError as e:
         raise DatasetError(f"env_kwargs must be JSON-serializable to be stored in the dataset: {e}") from None
     return dict(env_name=ENV_NAME, env_version=robosuite.__version__, type=ROBOSUITE_ENV_TYPE, env_kwargs=kwargs)
+
+
+def incompatible_kwargs(theirs: dict, ours: dict) -> list[str]:
+    """The COMPATIBLE_KWARGS in which two recordings' env_kwargs differ (metadata that names no physics was recorded
+    on PRE_CALIBRATION_PHYSICS)."""
+    theirs, ours = with_recorded_physics(theirs), with_recorded_physics(ours)
+    return [k for k in COMPATIBLE_KWARGS if canonical(theirs.get(k)) != canonical(ours.get(k))]
 
 
 def demo_names(f: h5py.File) -> list[str]:

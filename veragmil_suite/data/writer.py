@@ -24,15 +24,14 @@ import numpy as np
 from veragmil_suite.data import safe_hdf5
 from veragmil_suite.data.recording import Episode
 from veragmil_suite.data.schema import (
-    COMPATIBLE_KWARGS,
     DEMO_PREFIX,
     FORMAT_VERSION,
     IMAGE_COMPRESSION,
     WRITER,
     DatasetError,
     attr_text,
-    canonical,
     demo_names,
+    incompatible_kwargs,
     open_dataset,
     refresh_summary,
     remove_interrupted_writes,
@@ -128,7 +127,7 @@ class DemoWriter:
             )
         theirs = json.loads(data.attrs["env_args"])["env_kwargs"]
         ours = self.env_meta["env_kwargs"]
-        differ = [k for k in COMPATIBLE_KWARGS if canonical(theirs.get(k)) != canonical(ours.get(k))]
+        differ = incompatible_kwargs(theirs, ours)
         if differ:
             raise DatasetError(
                 f"{self.path} was recorded with other {', '.join(differ)} "

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from veragmil_suite.environments.episode import SUCCESS_HOLD_S, run_until_done
-from veragmil_suite.models.foods import TRAINING_FOODS, UNSEEN_FOODS
+from veragmil_suite.models.foods import PRE_CALIBRATION_PHYSICS, TRAINING_FOODS, UNSEEN_FOODS, with_recorded_physics
 from veragmil_suite.utils.canonical import canonical
 from veragmil_suite.utils.rendering import use_headless_rendering
 
@@ -66,6 +66,7 @@ class EpisodeRecord:
     wall_s: float
     spilled_mass_g: float = math.nan  # NaN: recorded before masses were
     spoon_mass_g: float = math.nan
+    physics: str = PRE_CALIBRATION_PHYSICS  # the grain models it ran on; records that name none predate the choice
 
     @classmethod
     def columns(cls) -> tuple[str, ...]:
@@ -297,6 +298,7 @@ def run_episode(task: EpisodeTask) -> EpisodeRecord:
         wall_s=time.perf_counter() - start,
         spilled_mass_g=metrics["spilled_mass_g"],
         spoon_mass_g=metrics["spoon_mass_g"],
+        physics=env.physics,
     )
 
 
@@ -359,7 +361,8 @@ def dataset_episodes(name: str, path: str, foods: list[str]) -> list[EpisodeReco
     out = []
     with open_dataset(path) as f:
         data = f["data"]
-        file_food = json.loads(data.attrs["env_args"]).get("env_kwargs", {}).get("food", "")
+        file_kwargs = with_recorded_physics(json.loads(data.attrs["env_args"]).get("env_kwargs", {}))
+        file_food = file_kwargs.get("food", "")
         counts: dict[str, int] = {}
         for demo in demo_names(f):
             a = data[demo].attrs
@@ -388,6 +391,7 @@ def dataset_episodes(name: str, path: str, foods: list[str]) -> list[EpisodeReco
                     wall_s=0.0,
                     spilled_mass_g=float(a.get("spilled_mass_g", math.nan)),
                     spoon_mass_g=float(a.get("spoon_mass_g", math.nan)),
+                    physics=file_kwargs["physics"],
                 )
             )
     return out

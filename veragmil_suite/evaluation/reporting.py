@@ -64,6 +64,7 @@ def summarize(episodes: list[EpisodeRecord]) -> dict[tuple[str, str], dict]:
             completion_time_s_mean=float(times.mean()) if ok else math.nan,
             completion_time_s_std=float(times.std()) if ok else math.nan,
             physics_errors=sum(bool(e.physics_error) for e in rows),
+            physics=", ".join(sorted({e.physics for e in rows})),
             stages={stage: sum(e.stage == stage for e in rows) for stage in _stage_columns(rows)},
         )
     return out
@@ -216,7 +217,16 @@ def markdown_tables(summary: dict, agents: list[str], foods: list[str]) -> str:
                 spilled += f" ± {_fmt(row[f'{a} spilled std'])}"
             cells += [spilled, _fmt(row[f"{a} spilled g"], 2), _fmt(row[f"{a} carried g"], 2), _fmt(row[f"{a} time"])]
         lines.append(f"| {row['food'] if is_food else '*' + row['food'] + '*'} | " + " | ".join(cells) + " |")
+    lines += ["", f"Physics (grain models, veragmil_suite.models.foods): {', '.join(physics_of(summary))}"]
     return "\n".join(lines) + "\n"
+
+
+def physics_of(summary: dict) -> list[str]:
+    """The physics a summary's episodes ran on (summaries written before the choice ran on PRE_CALIBRATION_PHYSICS)."""
+    from veragmil_suite.models.foods import PRE_CALIBRATION_PHYSICS
+
+    names = {p.strip() for s in summary.values() for p in s.get("physics", PRE_CALIBRATION_PHYSICS).split(",")}
+    return sorted(names)
 
 
 def csv_tables(summary: dict, agents: list[str], foods: list[str]) -> str:
@@ -316,7 +326,8 @@ class EvaluationResult:
             writer.writeheader()
             writer.writerows(e.to_dict() for e in self.episodes)
         episodes = [e.to_dict() for e in self.episodes]
-        results = dict(config=self.config, summary=list(self.summary.values()), episodes=episodes)
+        config = {**self.config, "physics": physics_of(self.summary)}
+        results = dict(config=config, summary=list(self.summary.values()), episodes=episodes)
         Path(paths["results.json"]).write_text(json.dumps(json_safe(results), indent=2))
         Path(paths["table.md"]).write_text(self.markdown())
         Path(paths["table.csv"]).write_text(csv_tables(self.summary, self.agents, self.foods))

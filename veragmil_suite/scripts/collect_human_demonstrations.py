@@ -138,6 +138,12 @@ def build_parser() -> Parser:
     add("--horizon", type=cli.count, default=400, help="longest episode, control steps")
     add("--n-grains", type=cli.count, default=None, help="grains in the bowl (default: the food's own)")
     add(
+        "--physics",
+        type=cli.physics,
+        default=None,
+        help="the grain models (veragmil_suite.models.foods.PHYSICS; default: the task's); recorded by name",
+    )
+    add(
         "--camera-names",
         aliases=["--cameras"],
         type=cli.ListOf(cli.camera),
@@ -256,6 +262,8 @@ def env_kwargs_from_args(args) -> dict:
     )
     if args.n_grains is not None:
         kwargs["n_grains"] = args.n_grains
+    if args.physics is not None:
+        kwargs["physics"] = args.physics
     return kwargs
 
 

@@ -95,6 +95,12 @@ def add_pipeline_arguments(p: Parser, defaults: PipelineSettings) -> None:
     )
     p.add_argument("--horizon", type=cli.count, default=defaults.horizon, help="longest episode, control steps")
     p.add_argument("--n-grains", type=cli.count, default=None, help="grains in the bowl (default: each food's own)")
+    p.add_argument(
+        "--physics",
+        type=cli.physics,
+        default=defaults.physics,
+        help="the grain models every stage records and evaluates on (veragmil_suite.models.foods.PHYSICS)",
+    )
     p.add_argument("--seed", type=cli.seed, default=defaults.seed, help="first recording seed")
     p.add_argument(
         "--train-seeds",

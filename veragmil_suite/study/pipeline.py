@@ -98,6 +98,7 @@ def check_output_dir(settings: PipelineSettings, runs: list[dict]) -> None:
                 horizon=settings.horizon,
                 n_grains=settings.n_grains,
                 robot=settings.robot,
+                physics=settings.physics,
             )
         check_merged(dataset, files)
     for run in runs:
@@ -155,6 +156,7 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True, verbose: boo
                 robot=settings.robot,
                 progress=progress,
                 echo=verbose,
+                physics=settings.physics,
             )
             note(f"record {profile}", seconds or None)
         checkpoints = _train_runs(runs, settings, out / "runs", address, say, note, progress, verbose)
@@ -176,9 +178,12 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True, verbose: boo
                                        demos_per_food=n, steps=k, train_seed=train_seed))  # fmt: skip
         agents.update(settings.agents)
         say(f"evaluating {len(agents)} agents x {settings.episodes} episodes on {settings.eval_foods}")
-        env_kwargs = {"n_grains": settings.n_grains} if settings.n_grains is not None else None
+        # every agent on the study's physics (a checkpoint's own is the physics it was trained on, the same here)
+        env_kwargs = {"physics": settings.physics}
+        if settings.n_grains is not None:
+            env_kwargs["n_grains"] = settings.n_grains
         start = time.perf_counter()
-        kwargs = dict(env_kwargs=env_kwargs) if env_kwargs else {}
+        kwargs = dict(env_kwargs=env_kwargs)
         result = evaluate(
             agents,
             foods=settings.eval_foods,

@@ -8,7 +8,14 @@ import json
 import os
 from pathlib import Path
 
-from veragmil_suite.models.foods import FOODS, TRAINING_FOODS, UNSEEN_FOODS, get_food, with_recorded_physics
+from veragmil_suite.models.foods import (
+    DEFAULT_PHYSICS,
+    FOODS,
+    TRAINING_FOODS,
+    UNSEEN_FOODS,
+    get_food,
+    with_recorded_physics,
+)
 from veragmil_suite.study.logged_run import RECORDING_PROGRESS, LogProgress, console, run_logged
 from veragmil_suite.study.settings import FOOD_SEED_STRIDE, StageError
 
@@ -33,6 +40,7 @@ def _recorded(path: Path) -> dict:
             demos=len(names),
             food=kwargs.get("food"),
             n_grains=kwargs.get("n_grains"),
+            physics=kwargs["physics"],
             horizon=kwargs.get("horizon"),
             robot=kwargs.get("robots"),
             cameras=kwargs.get("camera_names") if kwargs.get("use_camera_obs") else [],
@@ -50,6 +58,7 @@ def check_recording(
     n_grains: int | None = None,
     cameras: tuple[str, ...] = (),
     robot: str = "XArm7",
+    physics: str = DEFAULT_PHYSICS,
 ) -> dict | None:
     """
     What ``path`` holds (``_recorded``) when it may be continued with these settings; None when there is no file.
@@ -67,7 +76,14 @@ def check_recording(
     except DatasetError as error:
         raise StageError(str(error)) from None
     wanted = dict(
-        food=food, n_grains=n_grains, horizon=horizon, cameras=list(cameras), profile=profile, seed=seed, robot=robot
+        food=food,
+        n_grains=n_grains,
+        horizon=horizon,
+        cameras=list(cameras),
+        profile=profile,
+        seed=seed,
+        robot=robot,
+        physics=physics,
     )
     differ = {k: (held[k], v) for k, v in wanted.items() if held[k] != v and held["demos"]}
     if differ:
@@ -90,6 +106,7 @@ def record_food(
     robot: str = "XArm7",
     progress: bool = False,
     echo: bool = False,
+    physics: str = DEFAULT_PHYSICS,
 ) -> float | None:
     """
     Records ``demos`` successful scripted demos of ``food`` into ``path`` (attempt seeds from ``seed``, in
@@ -102,7 +119,7 @@ def record_food(
         StageError: [the file was recorded with other settings, or recording failed]
     """
     path = Path(path)
-    held = check_recording(path, food, profile, seed, horizon, n_grains, cameras, robot)
+    held = check_recording(path, food, profile, seed, horizon, n_grains, cameras, robot, physics)
     if held is not None:
         if held["demos"] >= demos:
             return None
@@ -115,7 +132,7 @@ def record_food(
         *console("veragmil-collect"),
         *("--device", "scripted", "--profile", profile, "--food", food),
         *("--episodes", str(demos), "--output", str(path), "--seed", str(seed), "--workers", str(workers)),
-        *("--horizon", str(horizon), "--robot", robot, "--quiet", "--cameras", *cameras),
+        *("--horizon", str(horizon), "--robot", robot, "--physics", physics, "--quiet", "--cameras", *cameras),
     ]
     if n_grains is not None:
         command += ["--n-grains", str(n_grains)]
@@ -211,6 +228,7 @@ def record_scripted_dataset(
     robot: str = "XArm7",
     progress: bool = False,
     echo: bool = False,
+    physics: str = DEFAULT_PHYSICS,
 ) -> float:
     """Records (or finds complete) max(``demo_counts``) scripted demos of each food, one file per food beside
     ``path`` (with ``progress``, a bar per food; with ``echo``, the collectors' lines), and merges them into
@@ -233,6 +251,7 @@ def record_scripted_dataset(
             robot=robot,
             progress=progress,
             echo=echo,
+            physics=physics,
         )
         if seconds is None:
             say(f"skipping recording {profile} {food}: {file} holds its {max(demo_counts)} demos")

@@ -11,7 +11,7 @@ from veragmil_suite.learning.observation_sets import (
     DEFAULT_OBSERVATION_SET,
     check_observation_set,
 )
-from veragmil_suite.models.foods import TRAINING_FOODS, UNSEEN_FOODS, get_food
+from veragmil_suite.models.foods import DEFAULT_PHYSICS, TRAINING_FOODS, UNSEEN_FOODS, check_physics, get_food
 
 # Seeds of recorded episodes and of evaluation episodes never meet: evaluation bowls are not training bowls.
 EVAL_SEED_OFFSET = 100_000
@@ -59,6 +59,7 @@ class PipelineSettings:
     seed: int = 0
     horizon: int = 400
     n_grains: int | None = None
+    physics: str = DEFAULT_PHYSICS  # the grains every stage records and evaluates on (veragmil_suite.models.foods)
     robot: str = "XArm7"  # records, trains and evaluates with this robot (veragmil_suite.models.humanoid: the G1)
     score_demonstrators: bool = True
     train_seeds: list[int] | None = None
@@ -69,6 +70,7 @@ class PipelineSettings:
     def __post_init__(self):
         for food in [*self.train_foods, *self.eval_foods]:
             get_food(food)  # a ValueError naming the accepted foods
+        check_physics(self.physics)
         from veragmil_suite.models.humanoid import check_robot
 
         check_robot(self.robot)
