@@ -295,3 +295,28 @@ def test_checkpoint_agent_rolls_out_on_the_evaluated_food(tmp_path):
     assert {e.seed for e in result.episodes} == {7}
     assert "| peas | 0 (0-79) |" in result.markdown()  # one episode: a wide interval
     assert bc.stage == "start"  # 15 steps from the pre-scoop pose do not reach the pile
+
+
+def test_a_checkpoint_of_several_foods_is_evaluated_on_each_food_asked(tmp_path):
+    """A multi-food dataset's env_kwargs variants (robomimic's rollouts take its foods in turn) must not replace the
+    evaluated food: they did, and every food of a study was scored on the dataset's first food."""
+    from helpers.tiny_dataset import record_tiny_dataset
+
+    from veragmil_suite.data.datasets import merge_datasets
+    from veragmil_suite.study.training import train_checkpoint, training_config
+
+    parts = [
+        record_tiny_dataset(str(tmp_path / f"{food}.hdf5"), env_kwargs={**CHEAP, "food": food}, episodes=1, steps=8)
+        for food in ("pasta", "peas")
+    ]
+    merge_datasets(parts, tmp_path / "two_foods.hdf5")
+    config = training_config(
+        "bc", tmp_path / "two_foods.hdf5", tmp_path / "runs", "tiny_bc", epochs=1, steps_per_epoch=2
+    )
+    config["train"]["batch_size"] = 4
+    checkpoints, _ = train_checkpoint(config, tmp_path)
+    result = evaluate(
+        {"BC": str(checkpoints[1])}, foods=["beans", "peas"], episodes=1, processes=1, seed=3, horizon=2,
+        env_kwargs=CHEAP, progress=False,
+    )  # fmt: skip
+    assert sorted(e.food for e in result.episodes) == ["beans", "peas"]  # run_episode refuses an env of another food

@@ -49,8 +49,7 @@ _PENDING_PREFIX = "incomplete_"
 IMAGE_COMPRESSION = dict(compression="gzip", compression_opts=4, shuffle=True)
 # the key of data's env_args that lists the env_kwargs its demos differ in (env_kwargs_variants)
 VARIANTS_KEY = "env_kwargs_variants"
-# env_kwargs that must agree for demos to share a file: they fix the action and observation spaces
-# env_kwargs every demo of one dataset shares (a policy trains on one robot, controller, rate, camera and physics)
+# env_kwargs every demo of one dataset shares: they fix the action and observation spaces, and the physics
 COMPATIBLE_KWARGS = (
     "robots",
     "controller_configs",

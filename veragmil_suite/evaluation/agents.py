@@ -238,9 +238,14 @@ def _checkpoint_env(task: EpisodeTask):
     import robomimic.utils.env_utils as EnvUtils
     import torch
 
+    from veragmil_suite.data.schema import VARIANTS_KEY
+
     policy, ckpt = _policy(task.spec.target)
     meta = copy.deepcopy(ckpt["env_metadata"])
     meta["env_kwargs"] = _env_kwargs(task, _checkpoint_base(meta))
+    # a multi-food dataset's variants make robomimic's rollouts take its foods in turn at each reset; an evaluated
+    # episode is on its own food
+    meta.pop(VARIANTS_KEY, None)
     use_images = bool(ckpt["shape_metadata"]["use_images"])
     with contextlib.redirect_stdout(io.StringIO()):  # robomimic prints each env it creates
         env = EnvUtils.create_env_from_metadata(
@@ -260,6 +265,8 @@ def run_episode(task: EpisodeTask) -> EpisodeRecord:
     start = time.perf_counter()
     make = _expert_env if task.spec.kind == "expert" else _checkpoint_env
     env, obs, act, step = make(task)
+    if env.food.name != task.food:
+        raise RuntimeError(f"{task.agent}'s environment holds {env.food.name} where the task asked for {task.food}")
     frames = []
 
     def grab() -> None:
