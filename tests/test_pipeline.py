@@ -186,7 +186,10 @@ def test_an_algorithm_with_its_own_budget_is_evaluated_at_its_end_and_at_the_swe
 
 
 # what veragmil-quickstart prints on stdout: a line per stage, the tables, where they went
-QUICKSTART_LINES = re.compile(r"\[veragmil\] .*|Table (II|III): .*|Furthest stage .*|\|.*\||Tables, chart and .*|")
+QUICKSTART_LINES = re.compile(
+    r"\[veragmil\] .*|Table (II|III): .*|Physics \(grain models.*\): table1|Furthest stage .*|\|.*\|"
+    r"|Tables, chart and .*|"
+)
 
 
 def test_quickstart_end_to_end_records_trains_evaluates_and_prints_the_tables(tmp_path):
