@@ -64,7 +64,7 @@ def summarize(episodes: list[EpisodeRecord]) -> dict[tuple[str, str], dict]:
             completion_time_s_mean=float(times.mean()) if ok else math.nan,
             completion_time_s_std=float(times.std()) if ok else math.nan,
             physics_errors=sum(bool(e.physics_error) for e in rows),
-            physics=", ".join(sorted({e.physics for e in rows})),
+            physics=sorted({e.physics for e in rows}),
             stages={stage: sum(e.stage == stage for e in rows) for stage in _stage_columns(rows)},
         )
     return out
@@ -225,8 +225,7 @@ def physics_of(summary: dict) -> list[str]:
     """The physics a summary's episodes ran on (summaries written before the choice ran on PRE_CALIBRATION_PHYSICS)."""
     from veragmil_suite.models.foods import PRE_CALIBRATION_PHYSICS
 
-    names = {p.strip() for s in summary.values() for p in s.get("physics", PRE_CALIBRATION_PHYSICS).split(",")}
-    return sorted(names)
+    return sorted({p for s in summary.values() for p in s.get("physics", [PRE_CALIBRATION_PHYSICS])})
 
 
 def csv_tables(summary: dict, agents: list[str], foods: list[str]) -> str:
