@@ -5,6 +5,10 @@ import os
 os.environ.setdefault("MUJOCO_GL", "osmesa")  # EGL crashed at random in rollouts here; osmesa is reliable
 os.environ.setdefault("PYOPENGL_PLATFORM", os.environ["MUJOCO_GL"])
 os.environ.setdefault("PYNPUT_BACKEND", "dummy")  # robosuite.devices imports pynput, which needs X otherwise
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    # two workers share two cores: a training run a test starts takes one torch thread (robomimic asks for two, and
+    # two trainings of two threads each on two cores ran 9x slower than one alone)
+    os.environ.setdefault("VERAGMIL_TORCH_THREADS", "1")
 
 
 def pytest_configure(config):
