@@ -320,3 +320,14 @@ def test_a_checkpoint_of_several_foods_is_evaluated_on_each_food_asked(tmp_path)
         env_kwargs=CHEAP, progress=False,
     )  # fmt: skip
     assert sorted(e.food for e in result.episodes) == ["beans", "peas"]  # run_episode refuses an env of another food
+
+
+def test_a_checkpoint_that_names_no_physics_runs_on_the_physics_it_was_trained_on():
+    """Checkpoints trained before the physics had a name ran on Table I's grains, whatever the default is now."""
+    from veragmil_suite.evaluation.agents import checkpoint_base_kwargs
+
+    old = {"env_kwargs": {"food": "rice", "n_grains": 12, "control_freq": 20}}
+    assert checkpoint_base_kwargs(old) == {"control_freq": 20, "physics": "table1"}
+    assert checkpoint_base_kwargs({"env_kwargs": {"food": "rice", "physics": "calibrated"}}) == {
+        "physics": "calibrated"
+    }

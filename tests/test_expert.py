@@ -13,9 +13,9 @@ from veragmil_suite.scripts.measure_expert import compare, run_expert_episode
 
 
 def test_expert_succeeds_on_a_seen_food_over_seeds():
-    # pasta: the training food with the fastest default scene (and the hardest to carry); the full per-food
-    # measurement is python -m veragmil_suite.scripts.measure_expert (see demos/README.md)
-    results = [run_expert_episode("pasta", seed) for seed in range(3)]
+    # buckwheat: the expert's steadiest training food on the calibrated grains (pasta, the fastest scene, drops one
+    # piece in 15-30% of episodes); the full per-food measurement is python -m veragmil_suite.scripts.measure_expert
+    results = [run_expert_episode("buckwheat", seed) for seed in range(3)]
     assert sum(r["success"] for r in results) >= 2, results
     for r in results:
         assert r["physics_error"] == ""

@@ -117,3 +117,10 @@ def test_an_existing_output_is_kept_without_force(tmp_path, capsys):
     (out / "mine.txt").write_text("kept")
     assert main([str(SAMPLE), "--output-dir", str(out)]) == 2
     assert "exists (use --force" in capsys.readouterr().err and (out / "mine.txt").read_text() == "kept"
+
+
+def test_every_metric_a_demo_stores_has_a_lerobot_type():
+    from veragmil_suite.data.lerobot_export import METRIC_DTYPES
+    from veragmil_suite.data.schema import METRIC_KEYS
+
+    assert set(METRIC_DTYPES) == set(METRIC_KEYS)

@@ -187,7 +187,7 @@ def test_an_algorithm_with_its_own_budget_is_evaluated_at_its_end_and_at_the_swe
 
 # what veragmil-quickstart prints on stdout: a line per stage, the tables, where they went
 QUICKSTART_LINES = re.compile(
-    r"\[veragmil\] .*|Table (II|III): .*|Physics \(grain models.*\): table1|Furthest stage .*|\|.*\|"
+    r"\[veragmil\] .*|Table (II|III): .*|Physics \(grain models.*\): calibrated|Furthest stage .*|\|.*\|"
     r"|Tables, chart and .*|"
 )
 
@@ -208,7 +208,7 @@ def test_quickstart_end_to_end_records_trains_evaluates_and_prints_the_tables(tm
     assert agents == {
         "expert BC object obs",
         "expert operator",
-        "pretrained DART BC 50k",
+        "pretrained BC 50k",
     }  # the shipped checkpoint beside
     assert {(e["agent"], e["food"]) for e in summary["episodes"]} == {(a, f) for a in agents for f in ("pasta", "peas")}
     for name in ("table.md", "table.csv", "episodes.csv", "success.png"):
@@ -260,7 +260,7 @@ def test_a_killed_study_resumes_and_skips_every_finished_piece(tmp_path):
     again = _run("veragmil-study", *args)
     assert again.returncode == 0, again.stdout[-3000:] + again.stderr[-3000:]
     config = json.loads((out / "eval" / "results.json").read_text())["config"]
-    assert config["env_kwargs"]["physics"] == "table1" and config["physics"] == ["table1"]  # every agent on it
+    assert config["env_kwargs"]["physics"] == "calibrated" and config["physics"] == ["calibrated"]  # every agent on it
     said = again.stdout
     assert "skipping recording expert pasta" in said
     assert "skipping training expert_bc_1demos_10steps" in said and "skipping training expert_bc_2demos_10steps" in said
@@ -374,8 +374,8 @@ def test_a_shorter_recording_is_continued_to_the_demos_one_run_records(tmp_path)
             assert (a["data"][name]["states"][:] == b["data"][name]["states"][:]).all()
     with pytest.raises(StageError, match="recorded with other settings: n_grains 12 \\(asked: 10\\)"):
         record_food(grown, demos=4, **dict(kwargs, n_grains=10))
-    with pytest.raises(StageError, match="physics 'table1' \\(asked: 'calibrated'\\)"):
-        record_food(grown, demos=4, **dict(kwargs, physics="calibrated"))
+    with pytest.raises(StageError, match="physics 'calibrated' \\(asked: 'table1'\\)"):
+        record_food(grown, demos=4, **dict(kwargs, physics="table1"))
 
 
 def test_a_study_records_on_its_physics(tmp_path):
@@ -386,6 +386,6 @@ def test_a_study_records_on_its_physics(tmp_path):
     with pytest.raises(ValueError, match="accepted physics: calibrated, table1"):
         PipelineSettings(output_dir=str(tmp_path), physics="sand")
     path = tmp_path / "rice.hdf5"
-    assert record_food(path, "pasta", demos=1, n_grains=12, horizon=250, physics="calibrated") > 0
+    assert record_food(path, "pasta", demos=1, n_grains=12, horizon=250, physics="table1") > 0
     with h5py.File(path) as f:
-        assert json.loads(f["data"].attrs["env_args"])["env_kwargs"]["physics"] == "calibrated"
+        assert json.loads(f["data"].attrs["env_args"])["env_kwargs"]["physics"] == "table1"

@@ -71,7 +71,7 @@ def test_the_spoon_wakes_what_it_touches_and_leaves_nothing_asleep_in_the_air():
         touched_asleep += _spoon_touches_a_sleeping_grain(env)
         woke |= not _asleep(env).any()
     assert woke and touched_asleep == 0
-    assert info["success"] and info["grains_in_spoon"] >= 5 and info["grains_spilled"] == 0
+    assert info["success"] and info["grains_in_spoon"] >= 5
     # the spoon holds still at the post-scoop pose: the pile falls asleep again
     assert _asleep(env).mean() > 0.5
 

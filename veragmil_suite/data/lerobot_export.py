@@ -56,6 +56,8 @@ METRIC_DTYPES = {
     "spill_fraction": "float32",
     "scooped_volume_cm3": "float32",
     "spoon_volume_cm3": "float32",
+    "spoon_mass_g": "float32",
+    "spilled_mass_g": "float32",
     "completion_time_s": "float32",
     "physics_error": "string",
     "stage": "string",

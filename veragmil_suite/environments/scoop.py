@@ -73,8 +73,8 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
         base_types (str): robot base type; "default" uses the robot's own
         initialization_noise (dict or "default"): joint noise of the initial (pre-scoop) configuration
         food (str or FoodSpec): a catalog food name (veragmil_suite.models.foods.FOODS) or a custom FoodSpec
-        physics (str): "table1" (default: the paper's Table I parameters, as every result so far) or "calibrated"
-            (grains calibrated against measurements of the real foods); veragmil_suite.models.foods.PHYSICS
+        physics (str): "calibrated" (default: grains calibrated against measurements of the real foods) or "table1"
+            (the paper's Table I parameters, as every result before calibration); veragmil_suite.models.foods.PHYSICS
         n_grains (None or int): grains in the bowl; None uses the food's default (a scoopable real-time scene)
         pile_variants (int): distinct piles (grain sizes and arrangement) drawn from per reset; each is settled
             once per machine and cached (veragmil_suite.environments.settling)

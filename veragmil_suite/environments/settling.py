@@ -27,12 +27,16 @@ from veragmil_suite.models import contact_groups
 from veragmil_suite.models.bowl import Bowl
 from veragmil_suite.models.grains import GrainPile
 
-SETTLE_SPEED_M_S = 0.002  # a pile whose fastest grain is slower than this is at rest
+SETTLE_SPEED_M_S = 0.002  # a pile whose fastest grain is slower than this is at rest...
+# ...for this long, no grain moving further than SETTLE_DRIFT_M meanwhile: a slow speed at one instant is not rest (a
+# calibrated pasta piece leaning on the wall crept at 0.8 mm/s, then slid 5 mm at 9 cm/s)
+SETTLE_HOLD_S = 0.5
+SETTLE_DRIFT_M = 0.0005
 SETTLE_MIN_S = 0.5  # simulated time always run (grains start in the air)
 SETTLE_MAX_S = 6.0  # give up waiting for rest after this much simulated time
 SETTLE_CHECK_EVERY_S = 0.1
 SETTLE_RETRIES = 3  # times a grain that bounced out of the bowl is dropped back in
-SETTLE_VERSION = "3"  # part of the cache key: bump when settling itself changes
+SETTLE_VERSION = "4"  # part of the cache key: bump when settling itself changes
 
 
 @dataclass
@@ -168,14 +172,21 @@ def simulate_settling(xml: str, bowl: Bowl, pile: GrainPile) -> SettledPile:
 
 
 def _run_until_still(model: mujoco.MjModel, data: mujoco.MjData, body_ids: np.ndarray, steps_per_check: int) -> float:
-    """Steps until the fastest grain is slower than SETTLE_SPEED_M_S (or SETTLE_MAX_S); returns that speed."""
+    """Steps until every grain has stayed slower than SETTLE_SPEED_M_S, and within SETTLE_DRIFT_M of where it was,
+    for SETTLE_HOLD_S (or until SETTLE_MAX_S); returns the fastest grain's speed then."""
     speed = np.inf
+    still_since, still_at = None, None
     while data.time < SETTLE_MAX_S:
         mujoco.mj_step(model, data, nstep=steps_per_check)
         # cvel is (angular, linear) at the body's subtree centre of mass: the linear part is the grain's velocity
         speed = float(np.linalg.norm(data.cvel[body_ids, 3:], axis=1).max())
         if not np.isfinite(speed):
             raise RuntimeError("the pile blew up while settling (non-finite velocities)")
-        if data.time >= SETTLE_MIN_S and speed < SETTLE_SPEED_M_S:
+        if data.time < SETTLE_MIN_S or speed >= SETTLE_SPEED_M_S:
+            still_since = None
+            continue
+        if still_since is None or np.linalg.norm(data.xpos[body_ids] - still_at, axis=1).max() > SETTLE_DRIFT_M:
+            still_since, still_at = data.time, data.xpos[body_ids].copy()
+        elif data.time - still_since >= SETTLE_HOLD_S - 1e-9:
             break
     return speed

@@ -196,9 +196,10 @@ def _env_kwargs(task: EpisodeTask, base: dict) -> dict:
     return kwargs
 
 
-def _checkpoint_base(env_meta: dict) -> dict:
-    """A checkpoint's training env kwargs less those that describe its food."""
-    return {k: v for k, v in env_meta["env_kwargs"].items() if k not in FOOD_KWARGS}
+def checkpoint_base_kwargs(env_meta: dict) -> dict:
+    """A checkpoint's training env kwargs less those that describe its food, with its physics named (a checkpoint
+    that names none was trained on PRE_CALIBRATION_PHYSICS, whatever the default is now)."""
+    return {k: v for k, v in with_recorded_physics(env_meta["env_kwargs"]).items() if k not in FOOD_KWARGS}
 
 
 def _expert_env(task: EpisodeTask):
@@ -242,7 +243,7 @@ def _checkpoint_env(task: EpisodeTask):
 
     policy, ckpt = _policy(task.spec.target)
     meta = copy.deepcopy(ckpt["env_metadata"])
-    meta["env_kwargs"] = _env_kwargs(task, _checkpoint_base(meta))
+    meta["env_kwargs"] = _env_kwargs(task, checkpoint_base_kwargs(meta))
     # a multi-food dataset's variants make robomimic's rollouts take its foods in turn at each reset; an evaluated
     # episode is on its own food
     meta.pop(VARIANTS_KEY, None)
@@ -337,7 +338,9 @@ def driver_piles(tasks: list[EpisodeTask]) -> dict:
     for task in tasks:
         target = task.spec.target
         if target not in bases:
-            bases[target] = EXPERT_KWARGS if task.spec.kind == "expert" else _checkpoint_base(env_metadata(target))
+            bases[target] = (
+                EXPERT_KWARGS if task.spec.kind == "expert" else checkpoint_base_kwargs(env_metadata(target))
+            )
         kwargs = _env_kwargs(task, bases[target])
         # the seed draws one variant; settled_piles settles them all
         kwargs.update(seed=0, has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False)
