@@ -48,7 +48,7 @@ quickstart: setup
 test: test-setup
 	$(BIN)/ruff check veragmil_suite tests scripts benchmarks docs/scoop_png.py
 	$(BIN)/ruff format --check veragmil_suite tests scripts benchmarks docs/scoop_png.py
-	$(BIN)/python -m pytest -q -n 2 --dist worksteal -m "not realtime" tests
+	$(BIN)/python -m pytest -q -n 2 --dist loadgroup -m "not realtime" tests
 	$(BIN)/python -m pytest -q -m realtime tests
 
 lint: setup

@@ -20,6 +20,9 @@ from veragmil_suite.scripts.dataset_tools import (
     split_main,
 )
 
+# one worker runs this file's tests: its module fixtures are built once (make test: --dist loadgroup)
+pytestmark = pytest.mark.xdist_group("dataset_tools")
+
 STEPS = 10
 
 

@@ -16,6 +16,9 @@ import pytest
 
 from veragmil_suite.learning import robomimic_compat
 
+# one worker runs this file's tests: its module fixtures are built once (make test: --dist loadgroup)
+pytestmark = pytest.mark.xdist_group("diffusion_policy")
+
 ROOT = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
 SAMPLE_DATA = ROOT / "demos" / "scoop.hdf5"

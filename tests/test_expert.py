@@ -140,6 +140,7 @@ def test_a_registered_profile_is_an_operator_and_a_name_registers_once():
     from veragmil_suite.devices.expert import OperatorProfile, get_profile, register_profile
     from veragmil_suite.utils import cli
 
+    assert cli.profile("expert") == "expert"  # a parser used before the profile is registered takes it after
     profile = register_profile(OperatorProfile("test-slow", speed=0.5))
     try:
         assert get_profile("test-slow") is profile

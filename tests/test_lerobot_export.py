@@ -17,6 +17,7 @@ MIN_PSNR_DB = 25.0
 MAX_MEAN_ABS_ERROR = 6.0  # of 255
 
 pytestmark = [
+    pytest.mark.xdist_group("lerobot_export"),  # one worker: the export fixture is built once
     pytest.mark.skipif(
         importlib.util.find_spec("ledataset") is None or importlib.util.find_spec("torchcodec") is None,
         reason='the lerobot extra is not installed (pip install ".[lerobot]")',

@@ -22,6 +22,9 @@ from veragmil_suite.environments.settling import PileNotShipped, cache_dir
 from veragmil_suite.utils import distributed
 from veragmil_suite.utils.distributed import THIS_MACHINE, WorkerLost, ray_session, run_pieces
 
+# one worker runs this file's tests: its module fixtures are built once (make test: --dist loadgroup)
+pytestmark = pytest.mark.xdist_group("ray")
+
 BIN = Path(sys.executable).parent
 # the smallest grid: one demo of pasta, 2 x 5 gradient steps, one episode of each agent on pasta
 GRID = [*CHEAP_STUDY, "--eval-foods", "pasta", "--demos-per-food", "1", "--episodes", "1"]

@@ -19,6 +19,9 @@ from veragmil_suite.data.schema import VARIANTS_KEY, demo_names
 from veragmil_suite.learning import robomimic_compat
 from veragmil_suite.scripts.dataset_tools import info_main
 
+# one worker runs this file's tests: its module fixtures are built once (make test: --dist loadgroup)
+pytestmark = pytest.mark.xdist_group("robomimic_multi_food")
+
 ROOT = Path(__file__).resolve().parents[1]
 STEPS = 8
 # what each demo of the mixed file was recorded with, in order: a food, another food, another grain count

@@ -5,7 +5,6 @@ and what is accepted (numbers, choices from the catalogs and registries, robots,
 from __future__ import annotations
 
 import argparse
-import functools
 import math
 from collections.abc import Callable, Iterable
 from typing import Any
@@ -88,14 +87,14 @@ def _range_text(what: str, low, high) -> str:
 
 
 class Choice(Kind):
-    """One of a set of names (given, or produced by a function called at first use, so that building a parser
-    imports nothing heavy)."""
+    """One of a set of names (given, or produced by a function called at each use, so that building a parser
+    imports nothing heavy and a name registered later, such as an operator profile, is accepted)."""
 
     def __init__(self, what: str, values: Iterable[str] | Callable[[], Iterable[str]]):
         self.what = what
         self._values = values
 
-    @functools.cached_property
+    @property
     def values(self) -> list[str]:
         values = self._values() if callable(self._values) else self._values
         return [str(v) for v in values]
