@@ -6,11 +6,17 @@ from __future__ import annotations
 
 import contextlib
 import itertools
+import signal
 import time
 
+import robosuite
+
+from veragmil_suite.data.recording import EpisodeRecorder
 from veragmil_suite.devices.operators import ScriptedOperator
+from veragmil_suite.environments import settling
 from veragmil_suite.environments.episode import run_until_done
 from veragmil_suite.utils.canonical import canonical
+from veragmil_suite.utils.distributed import ray_session, run_pieces
 
 
 class FrameCap:
@@ -81,19 +87,13 @@ _WORKER: dict = {}  # per recording worker process: its env, recorder and operat
 
 def _ignore_sigint() -> None:
     """Local recording workers leave Ctrl-C to the parent, which stops the pool."""
-    import signal
-
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _worker_attempt(context: tuple, seed: int):
     """One attempt in a recording worker, whose env and scripted operator are built at its first attempt.
     ``context``: (arguments, env kwargs, the driver's settled piles or None)."""
-    import robosuite
-
     import veragmil_suite  # noqa: F401
-    from veragmil_suite.data.recording import EpisodeRecorder
-    from veragmil_suite.environments import settling
 
     args, env_kwargs, piles = context
     settling.use_shipped_piles(piles)
@@ -113,8 +113,6 @@ def parallel_attempts(args, env_kwargs: dict, piles: dict | None = None):
     ``piles``, yielded in seed order like local_attempts (a few attempts run ahead; those not needed are cancelled
     or dropped when the caller stops).
     """
-    from veragmil_suite.utils.distributed import ray_session, run_pieces
-
     with ray_session(args.ray) as address:
         on_ray = address is not None
         attempts = run_pieces(

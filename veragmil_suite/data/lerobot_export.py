@@ -31,8 +31,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
 from veragmil_suite.data.schema import METRIC_KEYS, DatasetError, demo_names, open_dataset
+from veragmil_suite.learning import robomimic_compat
 
 STATE_PREFIX = "robot0_"
 ENVIRONMENT_STATE_KEY = "object"
@@ -202,12 +204,10 @@ def _lerobot_dataset_class():
     """
     if importlib.util.find_spec("ledataset") is None:
         raise ExtraNotInstalled('the lerobot-dataset package is not installed: pip install ".[lerobot]"')
-    from veragmil_suite.learning import robomimic_compat
-
     robomimic_compat.install()  # torchvision, which lerobot-dataset imports, beside the CPU torch wheel
     os.environ.setdefault("SVT_LOG", SVT_LOG_ERRORS)
-    import datasets
-    from ledataset.datasets.lerobot_dataset import LeRobotDataset
+    import datasets  # optional extra: lerobot
+    from ledataset.datasets.lerobot_dataset import LeRobotDataset  # optional extra: lerobot
 
     datasets.disable_progress_bars()  # a bar per episode written, beside ours
     return LeRobotDataset
@@ -237,8 +237,6 @@ def export_lerobot(
     output = Path(output)
     if output.exists() and not force:
         raise DatasetError(f"{output} exists (use --force to replace it)")
-    from tqdm import tqdm
-
     with open_dataset(dataset) as f:
         names = _select(f, filter_key)
         if not names:
@@ -270,7 +268,7 @@ def export_lerobot(
             vcodec=vcodec,
         )
         # FFmpeg's own console log (lerobot-dataset hands it back after each encode) above its info lines only
-        import av
+        import av  # optional extra: lerobot (PyAV comes with it)
 
         av.logging.set_libav_level(av.logging.WARNING)
         foods: dict[str, int] = {}

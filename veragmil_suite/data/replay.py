@@ -9,6 +9,8 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+import robosuite
+import robosuite.macros
 
 from veragmil_suite.data.schema import (
     DatasetError,
@@ -41,8 +43,6 @@ class DemoEnvs:
         key = canonical(kwargs)
         if key != self._key:
             self.close()
-            import robosuite
-
             import veragmil_suite  # noqa: F401  (registers ScoopGranular)
 
             self.env = robosuite.make(meta["env_name"], **kwargs)
@@ -63,8 +63,6 @@ class DemoEnvs:
 
 
 def _render(env, camera: str, height: int, width: int) -> np.ndarray:
-    import robosuite.macros
-
     frame = env.sim.render(camera_name=camera, height=height, width=width)
     return frame[::-1] if robosuite.macros.IMAGE_CONVENTION == "opengl" else frame
 
@@ -109,7 +107,7 @@ def replay_demos(
     Returns, per demo: its name, steps, and with use_actions the largest state error against the recorded
     states (0.0 when replay is exact) and the final metrics of the replay.
     """
-    import imageio
+    import imageio  # imageio takes ~80 ms to import: only when writing videos
 
     with open_dataset(path) as f:
         names = _select_demos(f, demos, n)

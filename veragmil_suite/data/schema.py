@@ -25,6 +25,7 @@ import json
 import platform
 import re
 import subprocess
+from importlib.metadata import version
 from pathlib import Path
 
 import h5py
@@ -336,8 +337,6 @@ def _first_line(e: BaseException) -> str:
 
 def _version(module: str) -> str:
     try:
-        from importlib.metadata import version
-
         return version(module)
     except Exception:
         return ""

@@ -8,6 +8,7 @@ import time
 
 import numpy as np
 
+from veragmil_suite.devices.expert import ScriptedScooper
 from veragmil_suite.devices.session import RobosuiteDevice, SessionDevice
 from veragmil_suite.utils.cli.handler import UsageError
 
@@ -18,8 +19,6 @@ class ScriptedOperator:
     source = "scripted"
 
     def __init__(self, env, profile: str, seed: int):
-        from veragmil_suite.devices.expert import ScriptedScooper
-
         self.expert = ScriptedScooper(env, profile, seed=seed)
         self.name = f"scripted-{self.expert.profile.name}"
         self.command = None
@@ -121,13 +120,13 @@ def make_device(args, env):
     (robosuite's own classes) or our VRDevice; UsageError when its hardware cannot be opened."""
     sensitivity = dict(pos_sensitivity=args.pos_sensitivity, rot_sensitivity=args.rot_sensitivity)
     if args.device == "keyboard":
-        from robosuite.devices import Keyboard
+        from robosuite.devices import Keyboard  # robosuite.devices imports pynput and hid: only when making a device
 
         return Keyboard(env=env, **sensitivity)
     if args.device in ("spacemouse", "dualsense"):
         name = {"spacemouse": "SpaceMouse", "dualsense": "DualSense"}[args.device]
         try:
-            import robosuite.devices
+            import robosuite.devices  # robosuite.devices imports pynput and hid: only when making a device
 
             device_class = getattr(robosuite.devices, name)  # absent when hidapi is missing
             extra = {"reverse_xy": args.reverse_xy} if args.device == "dualsense" else {}
@@ -135,10 +134,10 @@ def make_device(args, env):
         except (OSError, ImportError, AttributeError) as e:
             raise UsageError(f"--device {args.device}: no {name} found through hidapi ({e})") from None
     if args.device == "mjgui":
-        from robosuite.devices.mjgui import MJGUI
+        from robosuite.devices.mjgui import MJGUI  # robosuite.devices imports pynput and hid: only when making a device
 
         return MJGUI(env=env, active_end_effector=args.arm)
-    from veragmil_suite.devices import VRDevice, VRServerOptions
+    from veragmil_suite.devices import VRDevice, VRServerOptions  # the VR server imports aiohttp: only with --device vr
 
     return VRDevice(
         env,

@@ -25,9 +25,22 @@ from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
+import robosuite
+import robosuite.macros
 
+from veragmil_suite.data.recording import episode_metrics
+from veragmil_suite.data.schema import VARIANTS_KEY, attr_text, demo_names, open_dataset
+from veragmil_suite.devices.expert import PROFILES, ScriptedScooper
+from veragmil_suite.environments import settling
 from veragmil_suite.environments.episode import SUCCESS_HOLD_S, run_until_done
-from veragmil_suite.models.foods import PRE_CALIBRATION_PHYSICS, TRAINING_FOODS, UNSEEN_FOODS, with_recorded_physics
+from veragmil_suite.learning import robomimic_compat
+from veragmil_suite.models.foods import (
+    FOODS,
+    PRE_CALIBRATION_PHYSICS,
+    TRAINING_FOODS,
+    UNSEEN_FOODS,
+    with_recorded_physics,
+)
 from veragmil_suite.utils.canonical import canonical
 from veragmil_suite.utils.rendering import use_headless_rendering
 
@@ -106,8 +119,6 @@ SPEC_HELP = "a robomimic checkpoint (*.pth), 'expert', 'expert:<profile>' or 'da
 
 def parse_spec(spec: str) -> AgentSpec:
     """An agent SPEC, checked now so a bad one fails before any work; ValueError names the accepted forms."""
-    from veragmil_suite.devices.expert import PROFILES
-
     spec = str(spec).strip()
     if spec == "expert" or spec.startswith("expert:"):
         profile = spec.partition(":")[2] or "expert"
@@ -119,8 +130,6 @@ def parse_spec(spec: str) -> AgentSpec:
         path = spec[len("dataset:") :]
         if not Path(path).is_file():
             raise ValueError(f"dataset {path!r} not found (agent {spec!r}); an agent is {SPEC_HELP}")
-        from veragmil_suite.data.schema import open_dataset
-
         try:
             open_dataset(path).close()
         except Exception as e:  # noqa: BLE001 - any unreadable file is a bad agent, named with the reason
@@ -145,8 +154,6 @@ def parse_agent_argument(text: str) -> tuple[str, str]:
 
 def check_foods(foods: list[str]) -> list[str]:
     """The foods to evaluate, each known; ValueError names the accepted ones."""
-    from veragmil_suite.models.foods import FOODS
-
     accepted = ", ".join(dict.fromkeys([*ALL_FOODS, *FOODS]))  # seen, unseen, then any registered later
     unknown = [f for f in foods if f not in FOODS]
     if unknown:
@@ -203,10 +210,7 @@ def checkpoint_base_kwargs(env_meta: dict) -> dict:
 
 
 def _expert_env(task: EpisodeTask):
-    import robosuite
-
     import veragmil_suite  # noqa: F401
-    from veragmil_suite.devices.expert import ScriptedScooper
 
     kwargs = _env_kwargs(task, EXPERT_KWARGS)
     kwargs["has_offscreen_renderer"] = bool(task.video_path)
@@ -219,16 +223,14 @@ def _expert_env(task: EpisodeTask):
 
 def _policy(path: str):
     if path not in _POLICIES:
-        import torch
+        import torch  # heavy: torch, only when used
 
         torch.set_num_threads(int(os.environ.get("VERAGMIL_TORCH_THREADS", "1")))
-
-        from veragmil_suite.learning import robomimic_compat
 
         # robomimic's banner of observation keys, printed by every worker that loads a policy
         with contextlib.redirect_stdout(io.StringIO()):
             robomimic_compat.install()
-            import robomimic.utils.file_utils as FileUtils
+            import robomimic.utils.file_utils as FileUtils  # heavy: robomimic, imports torch
 
             _POLICIES[path] = FileUtils.policy_from_checkpoint(ckpt_path=path, device=torch.device("cpu"))
     return _POLICIES[path]
@@ -236,10 +238,8 @@ def _policy(path: str):
 
 def _checkpoint_env(task: EpisodeTask):
     """robomimic's env of the checkpoint (its robot, controller and control rate) on the evaluated food."""
-    import robomimic.utils.env_utils as EnvUtils
-    import torch
-
-    from veragmil_suite.data.schema import VARIANTS_KEY
+    import robomimic.utils.env_utils as EnvUtils  # heavy: robomimic, imports torch
+    import torch  # heavy: torch, only when used
 
     policy, ckpt = _policy(task.spec.target)
     meta = copy.deepcopy(ckpt["env_metadata"])
@@ -261,8 +261,6 @@ def _checkpoint_env(task: EpisodeTask):
 
 def run_episode(task: EpisodeTask) -> EpisodeRecord:
     """Runs one episode of a checkpoint or expert agent; returns its record."""
-    from veragmil_suite.data.recording import episode_metrics
-
     start = time.perf_counter()
     make = _expert_env if task.spec.kind == "expert" else _checkpoint_env
     env, obs, act, step = make(task)
@@ -271,8 +269,6 @@ def run_episode(task: EpisodeTask) -> EpisodeRecord:
     frames = []
 
     def grab() -> None:
-        import robosuite.macros
-
         frame = env.sim.render(camera_name=task.video_camera, width=VIDEO_SIZE, height=VIDEO_SIZE)
         frames.append(frame[::-1] if robosuite.macros.IMAGE_CONVENTION == "opengl" else frame)
 
@@ -282,7 +278,7 @@ def run_episode(task: EpisodeTask) -> EpisodeRecord:
     end = run_until_done(act, step, obs, env.control_freq, horizon, SUCCESS_HOLD_S, grab if task.video_path else None)
     env.close()
     if task.video_path:
-        import imageio
+        import imageio  # imageio takes ~80 ms to import: only when writing videos
 
         Path(task.video_path).parent.mkdir(parents=True, exist_ok=True)
         imageio.mimsave(task.video_path, frames, fps=env.control_freq)
@@ -313,8 +309,6 @@ def run_episode(task: EpisodeTask) -> EpisodeRecord:
 def run_task(piles: dict | None, task: EpisodeTask) -> EpisodeRecord:
     """Worker entry: the record, or an EvaluationError carrying this process's traceback. ``piles``: the driver's
     settled piles (on Ray), which the episode's environment takes instead of settling its own."""
-    from veragmil_suite.environments import settling
-
     try:
         settling.use_shipped_piles(piles)
         return run_episode(task)
@@ -328,8 +322,6 @@ def driver_piles(tasks: list[EpisodeTask]) -> dict:
     Every pile variant the tasks' environments can draw, settled on this machine (or read from its cache), by
     cache key: Ray workers score their episodes on these, whatever their CPU (settling.use_shipped_piles).
     """
-    import robosuite
-
     import veragmil_suite  # noqa: F401
 
     bases: dict[str, dict] = {}
@@ -356,18 +348,14 @@ def driver_piles(tasks: list[EpisodeTask]) -> dict:
 
 def env_metadata(path: str) -> dict:
     """A checkpoint's env metadata, read without building its policy."""
-    from veragmil_suite.learning import robomimic_compat
-
     robomimic_compat.install()
-    import robomimic.utils.file_utils as FileUtils
+    import robomimic.utils.file_utils as FileUtils  # heavy: robomimic, imports torch
 
     return FileUtils.load_dict_from_checkpoint(path)["env_metadata"]
 
 
 def dataset_episodes(name: str, path: str, foods: list[str]) -> list[EpisodeRecord]:
     """A recorded dataset's demos as episode records (their stored metrics), for the foods evaluated."""
-    from veragmil_suite.data.schema import attr_text, demo_names, open_dataset
-
     out = []
     with open_dataset(path) as f:
         data = f["data"]

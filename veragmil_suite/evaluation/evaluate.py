@@ -11,7 +11,10 @@ import contextlib
 import json
 from collections.abc import Callable
 from dataclasses import replace
+from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
+
+from tqdm import tqdm
 
 from veragmil_suite.environments.episode import SUCCESS_HOLD_S
 from veragmil_suite.evaluation.agents import (
@@ -30,13 +33,12 @@ from veragmil_suite.evaluation.agents import (
     run_task,
 )
 from veragmil_suite.evaluation.reporting import EvaluationResult, json_safe, video_name
+from veragmil_suite.models.humanoid import check_robot
 from veragmil_suite.utils.canonical import canonical
 from veragmil_suite.utils.distributed import Resources, WorkerLost, ray_session, run_pieces
 
 
 def _versions() -> dict[str, str]:
-    from importlib.metadata import PackageNotFoundError, version
-
     out = {}
     for package in ("veragmil_suite", "robosuite", "robomimic", "mujoco", "torch", "numpy"):
         try:
@@ -158,8 +160,6 @@ def _evaluated_robot(specs: dict, robot: str | None) -> str:
     if robot is None:
         robot = next(iter(trained.values()), EXPERT_ROBOT)
     else:
-        from veragmil_suite.models.humanoid import check_robot
-
         check_robot(robot)
     other = {name: r for name, r in trained.items() if r != robot}
     if other:
@@ -215,8 +215,6 @@ def _run_parallel(
 ) -> list[EpisodeRecord]:
     """Runs the tasks in ``processes`` fresh worker processes, or as Ray tasks on the piles settled here, journaling
     each record as it arrives; the first failure stops the run and is raised."""
-    from tqdm import tqdm
-
     piles = driver_piles(tasks) if on_ray else None
     records = []
     pieces = run_pieces(

@@ -12,14 +12,15 @@ import csv
 import io
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
+from veragmil_suite.environments.stages import SCOOP_STAGES
 from veragmil_suite.evaluation.agents import MISSING, EpisodeRecord
 from veragmil_suite.learning.algorithms import ALGORITHMS
-from veragmil_suite.models.foods import TRAINING_FOODS
+from veragmil_suite.models.foods import PRE_CALIBRATION_PHYSICS, TRAINING_FOODS
 
 SEEN_LABEL = "seen (training)"
 UNSEEN_LABEL = "unseen"
@@ -72,8 +73,6 @@ def summarize(episodes: list[EpisodeRecord]) -> dict[tuple[str, str], dict]:
 
 def _stage_columns(rows: list[EpisodeRecord]) -> list[str]:
     """SCOOP_STAGES, and "-" for recorded demos that predate stage labels (only when there are any)."""
-    from veragmil_suite.environments.stages import SCOOP_STAGES
-
     return [*SCOOP_STAGES] + ([MISSING] if any(r.stage not in SCOOP_STAGES for r in rows) else [])
 
 
@@ -223,8 +222,6 @@ def markdown_tables(summary: dict, agents: list[str], foods: list[str]) -> str:
 
 def physics_of(summary: dict) -> list[str]:
     """The physics a summary's episodes ran on (summaries written before the choice ran on PRE_CALIBRATION_PHYSICS)."""
-    from veragmil_suite.models.foods import PRE_CALIBRATION_PHYSICS
-
     return sorted({p for s in summary.values() for p in s.get("physics", [PRE_CALIBRATION_PHYSICS])})
 
 
@@ -270,10 +267,10 @@ def json_safe(value):
 
 def plot_success(summary: dict, agents: list[str], foods: list[str], path: str) -> None:
     """Bar chart of success % per food: one group of bars per food, one bar per agent, with 95% Wilson intervals."""
-    import matplotlib
+    import matplotlib  # heavy: matplotlib, only when plotting
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # heavy: matplotlib, only when plotting
 
     width = 0.8 / max(1, len(agents))
     x = np.arange(len(foods))
@@ -348,8 +345,6 @@ def video_name(agent: str, food: str, episode: int) -> str:
 
 def _average_rows(result) -> dict[str, dict]:
     """Table II's average rows of ``result`` by group, "seen", "unseen" and "overall" (those its foods have)."""
-    from veragmil_suite.evaluation.reporting import SEEN_LABEL, UNSEEN_LABEL, table_rows
-
     names = {SEEN_LABEL: "seen", UNSEEN_LABEL: "unseen", "all": "overall"}
     rows = table_rows(result.summary, result.agents, result.foods)["table2"]
     return {names[r["group"]]: r for r in rows if r["food"].endswith(" average")}
@@ -358,8 +353,6 @@ def _average_rows(result) -> dict[str, dict]:
 def learning_curves(result, points: list[dict]) -> list[dict]:
     """Success on seen and unseen foods (each food weighing the same, 95% Wilson intervals of the group's totals)
     per checkpoint of a sweep: ``points`` name each checkpoint agent's profile, algo, demos per food and steps."""
-    from veragmil_suite.evaluation.reporting import wilson_interval
-
     averages = _average_rows(result)
     out = []
     for point in points:
@@ -378,12 +371,10 @@ def learning_curves(result, points: list[dict]) -> list[dict]:
 def write_learning_curves(result, points: list[dict], out_dir: Path) -> None:
     """curves.csv and curves.png: success against gradient steps (one line per demo count) and against demos
     per food (one line per step count), seen and unseen foods."""
-    import csv
-
-    import matplotlib
+    import matplotlib  # heavy: matplotlib, only when plotting
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # heavy: matplotlib, only when plotting
 
     rows = learning_curves(result, points)
     columns = list(dict.fromkeys(k for r in rows for k in r))
@@ -469,11 +460,6 @@ def seed_markdown(rows: list[dict]) -> str:
 def write_seed_tables(result, points: list[dict], out_dir: Path) -> None:
     """seeds.md and seeds.csv (seed_spread), and seeds/: the tables, stages and chart with each recipe's seeds
     pooled into one column (its episodes of every seed; intervals over the pooled episodes)."""
-    import csv
-    from dataclasses import replace
-
-    from veragmil_suite.evaluation.reporting import EvaluationResult
-
     rows = seed_spread(result, points)
     with open(out_dir / "seeds.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))

@@ -86,9 +86,13 @@ import re
 import sys
 import types
 
+import h5py
 import mujoco
 import numpy as np
+import robosuite
+from robosuite.controllers.composite.composite_controller_factory import refactor_composite_controller_config
 
+from veragmil_suite.data.schema import VARIANTS_KEY, demo_names, env_kwargs_variants
 from veragmil_suite.learning import robomimic_obs
 from veragmil_suite.learning.robomimic_scripts import experiment_dirs, normalize_obs, postprocess_without_normalizing
 from veragmil_suite.models.foods import with_recorded_physics
@@ -117,11 +121,11 @@ def install() -> None:
     _import_torchvision()
     robomimic_obs.remember_sim_xml()
 
-    from robomimic.algo.algo import Algo
-    from robomimic.envs.env_base import EnvBase
-    from robomimic.envs.env_robosuite import EnvRobosuite
-    from robomimic.envs.wrappers import EnvWrapper
-    from robomimic.utils import env_utils, file_utils, obs_utils, train_utils
+    from robomimic.algo.algo import Algo  # heavy: robomimic, imports torch
+    from robomimic.envs.env_base import EnvBase  # heavy: robomimic, imports torch
+    from robomimic.envs.env_robosuite import EnvRobosuite  # heavy: robomimic, imports torch
+    from robomimic.envs.wrappers import EnvWrapper  # heavy: robomimic, imports torch
+    from robomimic.utils import env_utils, file_utils, obs_utils, train_utils  # heavy: robomimic, imports torch
 
     env_utils.create_env_from_metadata = _create_env_from_metadata(env_utils.create_env_from_metadata)
     env_utils.create_env_for_data_processing = _with_variants(env_utils.create_env_for_data_processing, in_turn=False)
@@ -173,7 +177,7 @@ def _import_torchvision() -> None:
             # the failed import left half-initialised torchvision modules behind
             for module_name in [m for m in sys.modules if m == "torchvision" or m.startswith("torchvision.")]:
                 del sys.modules[module_name]
-            import torch
+            import torch  # heavy: torch, only when used
 
             if _torchvision_library is None:
                 _torchvision_library = torch.library.Library("torchvision", "FRAGMENT")
@@ -182,7 +186,7 @@ def _import_torchvision() -> None:
 
 
 def _registered_keys(modality: str) -> list[str]:
-    from robomimic.utils import obs_utils
+    from robomimic.utils import obs_utils  # heavy: robomimic, imports torch
 
     return list((obs_utils.OBS_MODALITIES_TO_KEYS or {}).get(modality, []))
 
@@ -226,9 +230,6 @@ def _env_init(
         postprocess_visual_obs (bool): prepare images for the networks (False when writing datasets)
         kwargs: the environment's keyword arguments (env_kwargs of a dataset's env_args)
     """
-    import robosuite
-    from robosuite.controllers.composite.composite_controller_factory import refactor_composite_controller_config
-
     if int(robosuite.__version__.split(".")[0]) != 1 or int(robosuite.__version__.split(".")[1]) < 5:
         raise RuntimeError(f"veragmil_suite's robomimic layer targets robosuite 1.5, found {robosuite.__version__}")
     kwargs = copy.deepcopy(kwargs)
@@ -248,7 +249,7 @@ def _env_init(
         robot = robots if isinstance(robots, str) else robots[0]
         kwargs["controller_configs"] = refactor_composite_controller_config(controller, robot, ["right"])
     if kwargs["has_offscreen_renderer"] and os.environ.get("MUJOCO_GL", "").lower() == "egl":
-        import egl_probe
+        import egl_probe  # only with MUJOCO_GL=egl (robomimic's dependency)
 
         devices = egl_probe.get_available_devices()
         if devices:
@@ -263,8 +264,6 @@ def _env_init(
 
 
 def _make_robosuite_env(env_name: str, kwargs: dict):
-    import robosuite
-
     env = robosuite.make(env_name, **kwargs)
     # robomimic's datasets use joint positions, which robosuite may leave inactive
     for name in env.observation_names:
@@ -282,10 +281,6 @@ def _with_dataset_variants(get_env_metadata):
 
     @functools.wraps(get_env_metadata)
     def get_env_metadata_from_dataset(dataset_path, *args, **kwargs):
-        import h5py
-
-        from veragmil_suite.data.schema import VARIANTS_KEY, demo_names, env_kwargs_variants
-
         env_meta = get_env_metadata(dataset_path, *args, **kwargs)
         with h5py.File(os.path.expanduser(dataset_path), "r") as f:
             if any("env_args" in f["data"][name].attrs for name in demo_names(f)):
@@ -310,9 +305,7 @@ def _with_variants(create, in_turn: bool = True):
 
     @functools.wraps(create)
     def create_with_variants(env_meta, *args, **kwargs):
-        from robomimic.envs.env_robosuite import EnvRobosuite
-
-        from veragmil_suite.data.schema import VARIANTS_KEY
+        from robomimic.envs.env_robosuite import EnvRobosuite  # heavy: robomimic, imports torch
 
         env = create(env_meta, *args, **kwargs)
         if isinstance(env, EnvRobosuite):
@@ -370,8 +363,6 @@ def _serialize_with_variants(serialize):
 
     @functools.wraps(serialize)
     def serialize_with_variants(self):
-        from veragmil_suite.data.schema import VARIANTS_KEY
-
         meta = serialize(self)
         if getattr(self, "env_kwargs_variants", None):
             meta[VARIANTS_KEY] = copy.deepcopy(self.env_kwargs_variants)

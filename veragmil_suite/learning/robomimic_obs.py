@@ -12,6 +12,10 @@ from __future__ import annotations
 import functools
 
 import numpy as np
+import robosuite.macros
+from robosuite.utils.binding_utils import MjSim
+
+from veragmil_suite.utils.sim_xml import source_xml
 
 
 def observation(env, raw: dict | None = None, postprocess: bool = False) -> dict[str, np.ndarray]:
@@ -27,8 +31,6 @@ def observation(env, raw: dict | None = None, postprocess: bool = False) -> dict
     ``robosuite.utils.camera_utils.get_real_depth_map``). This is what datasets store; with postprocess=True, the
     rgb and depth keys robomimic's ObsUtils knows are prepared for the networks (channels first, scaled).
     """
-    import robosuite.macros
-
     if raw is None:
         raw = env._get_observations(force_update=True)
     flip = robosuite.macros.IMAGE_CONVENTION == "opengl"
@@ -47,7 +49,7 @@ def observation(env, raw: dict | None = None, postprocess: bool = False) -> dict
         else:
             obs[key] = value.astype(np.float64)
     if postprocess:
-        from robomimic.utils import obs_utils
+        from robomimic.utils import obs_utils  # heavy: robomimic, imports torch
 
         modalities = obs_utils.OBS_KEYS_TO_MODALITIES or {}
         for key, value in obs.items():
@@ -71,8 +73,6 @@ def observe(env) -> dict:
 
 def remember_sim_xml() -> None:
     """Makes every robosuite MjSim compiled from now on keep the XML it was compiled from (see ``model_xml``)."""
-    from robosuite.utils.binding_utils import MjSim
-
     if getattr(MjSim.from_xml_string, "_keeps_source_xml", False):
         return
     compile_xml = MjSim.from_xml_string.__func__
@@ -98,8 +98,6 @@ def model_xml(env) -> str:
     veragmil_suite.utils.sim_xml); otherwise it is rebuilt from the env's model, which gives the same XML until a
     reset_to loads another.
     """
-    from veragmil_suite.utils.sim_xml import source_xml
-
     xml = source_xml(env.sim)
     return xml if xml is not None else env.edit_model_xml(env.model.get_xml())
 

@@ -15,8 +15,10 @@ import types
 from collections.abc import Iterator
 from dataclasses import dataclass
 
+import h5py
 import numpy as np
 
+from veragmil_suite.data.schema import VARIANTS_KEY
 from veragmil_suite.utils.canonical import canonical
 
 
@@ -53,10 +55,6 @@ def _carry_attributes(source: str, output: str) -> None:
     food, metrics, each demo's env_args); a demo's env_args take the env_kwargs robomimic's processing changed or
     dropped (cameras, reward shaping) from the output's own env_args.
     """
-    import h5py
-
-    from veragmil_suite.data.schema import VARIANTS_KEY
-
     with h5py.File(source, "r") as fin, h5py.File(output, "a") as fout:
         data_in, data_out = fin["data"], fout["data"]
         before = json.loads(data_in.attrs["env_args"])["env_kwargs"]
@@ -134,7 +132,7 @@ def prepare_train_script(module: types.ModuleType) -> TrainOutcome:
     with $VERAGMIL_TORCH_THREADS torch threads when that is set; its DataLoader keeps the last validation batch
     and rejects a training split smaller than one batch.
     """
-    import torch
+    import torch  # heavy: torch, only when used
 
     outcome = TrainOutcome()
     robomimic_train = getattr(module.train, "__wrapped__", module.train)
@@ -156,7 +154,7 @@ def prepare_train_script(module: types.ModuleType) -> TrainOutcome:
             torch.set_num_threads = set_num_threads
 
     def data_loader(dataset, batch_size=1, drop_last=False, **kwargs):
-        from torch.utils.data import DataLoader
+        from torch.utils.data import DataLoader  # heavy: torch, only when used
 
         config = outcome.config
         if config is not None and config.experiment.validate:

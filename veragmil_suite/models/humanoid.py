@@ -22,6 +22,8 @@ import importlib.util
 from dataclasses import dataclass
 
 import numpy as np
+from robosuite.models.robots.robot_model import REGISTERED_ROBOTS
+from robosuite.robots import ROBOT_CLASS_MAPPING
 
 # robosuite-models 1.0.0's G1 variants the task supports: a fixed base (the legs do not balance anything)
 G1_ROBOTS = ("G1FixedLowerBody", "G1ArmsOnly")
@@ -88,9 +90,6 @@ def humanoid_layout(robot: str) -> HumanoidLayout | None:
 
 def check_robot(robot: str) -> None:
     """Raises a ValueError naming the problem and the accepted robots when ``robot`` cannot scoop here."""
-    from robosuite.models.robots.robot_model import REGISTERED_ROBOTS
-    from robosuite.robots import ROBOT_CLASS_MAPPING
-
     known = ROBOT_CLASS_MAPPING
     if robot not in known:
         if robot in G1_ROBOTS + UNSUPPORTED_G1_ROBOTS:

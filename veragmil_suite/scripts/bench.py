@@ -29,6 +29,7 @@ import numpy as np
 import robosuite
 
 import veragmil_suite  # noqa: F401  (registers ScoopGranular)
+from veragmil_suite.devices.expert import ScriptedScooper
 from veragmil_suite.environments.episode import run_until_done
 from veragmil_suite.environments.scoop import MAX_GRAINS_PER_DEFAULT
 from veragmil_suite.models.foods import DEFAULT_PHYSICS, FOODS, TRAINING_FOODS
@@ -101,8 +102,6 @@ def expert_episodes(food: str, robot: str, sleep_tolerance: float | None, episod
     successes, each STEP_PARTS share of MuJoCo's step time, the share of control steps that end with the whole pile
     awake (the steps sleeping cannot make cheaper) and of the wall time they take, and MuJoCo's share of the wall
     time (the rest is robosuite's Python)."""
-    from veragmil_suite.devices.expert import ScriptedScooper
-
     env = make_env(food, robot=robot, sleep_tolerance=sleep_tolerance)
     expert = ScriptedScooper(env, "expert")
     steps, seconds, successes, pile_awake_steps, pile_awake_s = 0, 0.0, 0, 0, 0.0

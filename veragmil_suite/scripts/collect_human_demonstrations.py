@@ -31,20 +31,30 @@ Example:
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import os
 import sys
 import time
 
 import numpy as np
+import robosuite
+from robosuite.controllers import ALL_COMPOSITE_CONTROLLERS, load_composite_controller_config
 
+from veragmil_suite.controllers.scoop_config import load_scoop_controller_config
 from veragmil_suite.data.collection import FrameCap, local_attempts, parallel_attempts
+from veragmil_suite.data.recording import EpisodeRecorder
+from veragmil_suite.data.schema import DatasetError, env_meta, provenance
+from veragmil_suite.data.writer import DemoWriter
+from veragmil_suite.devices.expert import PROFILES
 from veragmil_suite.devices.operators import TeleopOperator, make_operator
 from veragmil_suite.environments.episode import SUCCESS_HOLD_S
+from veragmil_suite.models.humanoid import SPOON_ARM
 from veragmil_suite.utils import cli
 from veragmil_suite.utils.cli.handler import UsageError, command
 from veragmil_suite.utils.cli.parser import Parser
 from veragmil_suite.utils.distributed import add_ray_argument, check_ray_argument
+from veragmil_suite.utils.rendering import use_headless_rendering
 
 # robosuite's devices (its collect_human_demonstrations.py), then ours
 ROBOSUITE_DEVICES = ("keyboard", "spacemouse", "dualsense", "mjgui")
@@ -56,9 +66,6 @@ ENV_CONFIGURATIONS = ("default",)
 
 def build_parser() -> Parser:
     """robosuite's collect_human_demonstrations.py options, with their meaning there, and ours."""
-    from veragmil_suite.devices.expert import PROFILES
-    from veragmil_suite.models.humanoid import SPOON_ARM
-
     p = Parser(
         "veragmil-collect",
         description=__doc__.split("\n\n")[0].strip() + " Devices: " + ", ".join(DEVICES) + ".",
@@ -212,8 +219,6 @@ def build_parser() -> Parser:
 
 def check_args(args: argparse.Namespace) -> None:
     """What no single option's kind can tell: how they combine. UsageError names the conflict."""
-    from veragmil_suite.models.humanoid import SPOON_ARM
-
     if (args.output is None) == (args.directory is None):
         raise UsageError("give --output FILE (appended to when it exists) or --directory DIR (robosuite's), one")
     if args.arm != SPOON_ARM:
@@ -273,12 +278,6 @@ def controller_config(value: str, robot: str, absolute: bool = False) -> dict:
     composite controller of that name, or a JSON file. ``absolute``: the arm takes absolute world-frame poses (what
     robosuite's mjgui device sends) instead of deltas. UsageError when the arm is not OSC_POSE.
     """
-    import copy
-
-    from robosuite.controllers import ALL_COMPOSITE_CONTROLLERS, load_composite_controller_config
-
-    from veragmil_suite.controllers.scoop_config import load_scoop_controller_config
-
     if value == "OSC_POSE":
         config = load_scoop_controller_config("OSC_POSE", robot=robot)
     elif value in ALL_COMPOSITE_CONTROLLERS:
@@ -326,16 +325,9 @@ def main(args: argparse.Namespace) -> int:
     if not os.environ.get("DISPLAY"):
         os.environ.setdefault("PYNPUT_BACKEND", "dummy")  # robosuite.devices imports pynput, which wants X
     if args.camera_names:
-        from veragmil_suite.utils.rendering import use_headless_rendering
-
         use_headless_rendering()
 
-    import robosuite
-
     import veragmil_suite  # noqa: F401  (registers ScoopGranular)
-    from veragmil_suite.data.recording import EpisodeRecorder
-    from veragmil_suite.data.schema import DatasetError, env_meta, provenance
-    from veragmil_suite.data.writer import DemoWriter
 
     has_display = bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
     render = args.render == "on" or (args.render == "auto" and args.device != "scripted" and has_display)

@@ -23,8 +23,20 @@ import sys
 import time
 
 import numpy as np
+import robosuite
 
+from veragmil_suite.data.recording import EpisodeRecorder, episode_metrics
+from veragmil_suite.devices.expert import PROFILES, ScriptedScooper
 from veragmil_suite.environments.episode import SUCCESS_HOLD_S, run_until_done
+from veragmil_suite.environments.scoop import ScoopGranular
+from veragmil_suite.models.foods import FOODS, TRAINING_FOODS
+from veragmil_suite.models.scoop_task import (
+    GRAIN_SLEEP_TOLERANCE,
+    PHYSICS_TIMESTEP_S,
+    check_physics_timestep,
+    check_sleep_tolerance,
+)
+from veragmil_suite.utils.distributed import run_pieces
 from veragmil_suite.utils.rendering import use_headless_rendering
 
 
@@ -38,11 +50,7 @@ def run_expert_episode(
 ) -> dict:
     """One scripted episode of ``food`` with env and expert seeded by ``seed``; returns its metrics."""
     use_headless_rendering()
-    import robosuite
-
     import veragmil_suite  # noqa: F401
-    from veragmil_suite.data.recording import EpisodeRecorder, episode_metrics
-    from veragmil_suite.devices.expert import ScriptedScooper
 
     kwargs = dict(
         robots=robot, food=food, has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False, seed=seed
@@ -122,8 +130,6 @@ def _physics_timestep(text: str) -> float:
 
 def _label(run: dict) -> str:
     """A --json run's name in --compare: its MuJoCo, sleep tolerance, physics step and solver overrides."""
-    from veragmil_suite.models.scoop_task import PHYSICS_TIMESTEP_S
-
     solver = "".join(f", {k}={v}" for k, v in (run.get("solver") or {}).items())
     # a run that names no physics step ran at the task's default, 1/240 s
     step = f", step 1/{1 / run.get('physics_timestep_s', PHYSICS_TIMESTEP_S):.0f} s"
@@ -132,8 +138,6 @@ def _label(run: dict) -> str:
 
 def _sleep_tolerance(text: str) -> float | None:
     """argparse type of --sleep-tolerance: 'none' or a positive float."""
-    from veragmil_suite.models.scoop_task import check_sleep_tolerance
-
     try:
         return check_sleep_tolerance(None if text.lower() == "none" else float(text))
     except ValueError as e:
@@ -210,10 +214,6 @@ def compare(paths: list[str]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from veragmil_suite.devices.expert import PROFILES
-    from veragmil_suite.models.foods import FOODS, TRAINING_FOODS
-    from veragmil_suite.models.scoop_task import GRAIN_SLEEP_TOLERANCE, PHYSICS_TIMESTEP_S, check_physics_timestep
-
     p = argparse.ArgumentParser(prog="python -m veragmil_suite.scripts.measure_expert", description=__doc__)
     p.add_argument("--foods", nargs="+", choices=list(FOODS), default=list(TRAINING_FOODS), metavar="FOOD")
     p.add_argument("--episodes", type=int, default=10, help="episodes per food (seeds first-seed...)")
@@ -256,14 +256,10 @@ def main(argv: list[str] | None = None) -> int:
         print(compare(args.compare))
         return 0
     try:
-        from veragmil_suite.environments.scoop import ScoopGranular
-
         control_freq = inspect.signature(ScoopGranular).parameters["control_freq"].default
         check_physics_timestep(args.physics_timestep, control_freq)
     except ValueError as e:
         p.error(f"--physics-timestep: {e}")
-    from veragmil_suite.utils.distributed import run_pieces
-
     jobs = [(f, s) for s in range(args.first_seed, args.first_seed + args.episodes) for f in args.foods]
     results = []
     solver = dict(args.solver)

@@ -10,6 +10,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from tqdm import tqdm
+
 from veragmil_suite.study.settings import StageError
 from veragmil_suite.utils.rendering import use_headless_rendering
 
@@ -62,8 +64,6 @@ def run_logged(
 
 def _follow(child: subprocess.Popen, log_path: Path, progress: LogProgress) -> int:
     """Waits for ``child``, its progress read from the lines it writes to ``log_path``; returns its exit code."""
-    from tqdm import tqdm
-
     pattern = re.compile(progress.pattern, re.MULTILINE)
     bar = tqdm(total=progress.total, desc=progress.desc, unit=progress.unit)
     with open(log_path, errors="replace") as log, bar:

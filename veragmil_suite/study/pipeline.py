@@ -31,6 +31,7 @@ import shutil
 import time
 from pathlib import Path
 
+from veragmil_suite.evaluation.evaluate import evaluate
 from veragmil_suite.evaluation.reporting import write_learning_curves, write_seed_tables
 from veragmil_suite.learning.algorithms import ALGORITHMS
 from veragmil_suite.study.record import (
@@ -43,7 +44,7 @@ from veragmil_suite.study.record import (
 )
 from veragmil_suite.study.settings import EVAL_SEED_OFFSET, PipelineSettings
 from veragmil_suite.study.training import finished_training, train_piece, training_config, training_resources
-from veragmil_suite.utils.distributed import Resources, ray_session, run_pieces
+from veragmil_suite.utils.distributed import Resources, cluster_resources, ray_session, run_pieces
 
 # what eval/ holds beside the evaluation's own tables: learning curves, and the tables over training seeds
 CURVE_FILES = ("curves.csv", "curves.png")
@@ -113,8 +114,6 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True, verbose: boo
     Returns the evaluation result (veragmil_suite.evaluation.reporting.EvaluationResult); everything is written under
     ``settings.output_dir``: data/, runs/, eval/ and timings.json.
     """
-    from veragmil_suite.evaluation.evaluate import evaluate
-
     out = Path(settings.output_dir)
     runs = training_runs(settings)  # every training run, in the grid's order
     check_output_dir(settings, runs)  # a run refused is refused here, before it writes anything
@@ -134,8 +133,6 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True, verbose: boo
 
     with ray_session(settings.ray) as address:
         if address is not None:
-            from veragmil_suite.utils.distributed import cluster_resources
-
             held = cluster_resources()
             cpus, gpus = held.get("CPU", 0), held.get("GPU", 0)
             say(f"running the pieces on Ray at {address} ({cpus:g} CPUs, {gpus:g} GPUs)")

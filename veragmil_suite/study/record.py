@@ -8,6 +8,11 @@ import json
 import os
 from pathlib import Path
 
+import h5py
+
+from veragmil_suite.data.datasets import merge_datasets
+from veragmil_suite.data.schema import DatasetError, demo_names, open_dataset, seeds_used
+from veragmil_suite.data.writer import updated_file
 from veragmil_suite.models.foods import (
     DEFAULT_PHYSICS,
     FOODS,
@@ -28,8 +33,6 @@ def food_seed(seed: int, food: str) -> int:
 
 def _recorded(path: Path) -> dict:
     """What a food's file holds: demos, and the settings it was recorded with."""
-    from veragmil_suite.data.schema import demo_names, open_dataset, seeds_used
-
     with open_dataset(path) as f:
         kwargs = with_recorded_physics(json.loads(f["data"].attrs["env_args"])["env_kwargs"])
         names = demo_names(f)
@@ -66,8 +69,6 @@ def check_recording(
     Raises:
         StageError: [the file was recorded with other settings, or is not a dataset]
     """
-    from veragmil_suite.data.schema import DatasetError
-
     path = Path(path)
     if not path.exists():
         return None
@@ -156,8 +157,6 @@ def check_merged(path: Path, food_files: list[Path]) -> None:
     Raises:
         StageError: [``path`` merges other foods' files, or cannot be read]
     """
-    import h5py
-
     if not Path(path).exists():
         return
     try:
@@ -181,11 +180,6 @@ def merge_profile_dataset(path: Path, food_files: list[Path], demo_counts: list[
     Merges the foods' files into ``path`` (again when the inputs changed) and writes a mask per demo count: the
     first N demos of each food (its first N seeds).
     """
-    import h5py
-
-    from veragmil_suite.data.datasets import merge_datasets
-    from veragmil_suite.data.writer import updated_file
-
     sources = [str(p) for p in food_files]
     stamp = json.dumps([[s, os.path.getmtime(s)] for s in sources])
     current = None

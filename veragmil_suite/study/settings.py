@@ -6,12 +6,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from veragmil_suite.devices.expert import get_profile
+from veragmil_suite.evaluation.agents import parse_spec
 from veragmil_suite.learning.algorithms import ALGORITHMS
 from veragmil_suite.learning.observation_sets import (
     DEFAULT_OBSERVATION_SET,
     check_observation_set,
 )
 from veragmil_suite.models.foods import DEFAULT_PHYSICS, TRAINING_FOODS, UNSEEN_FOODS, check_physics, get_food
+from veragmil_suite.models.humanoid import check_robot
 
 # Seeds of recorded episodes and of evaluation episodes never meet: evaluation bowls are not training bowls.
 EVAL_SEED_OFFSET = 100_000
@@ -71,14 +74,10 @@ class PipelineSettings:
         for food in [*self.train_foods, *self.eval_foods]:
             get_food(food)  # a ValueError naming the accepted foods
         check_physics(self.physics)
-        from veragmil_suite.models.humanoid import check_robot
-
         check_robot(self.robot)
         unknown = sorted(set(self.algos) - set(ALGORITHMS))
         if unknown:
             raise ValueError(f"unknown algorithm(s) {unknown}; accepted: {sorted(ALGORITHMS)}")
-        from veragmil_suite.devices.expert import get_profile
-
         for profile in self.profiles:
             get_profile(profile)
         if isinstance(self.demos_per_food, int):
@@ -114,8 +113,6 @@ class PipelineSettings:
         self.obs_sets = list(dict.fromkeys(check_observation_set(name) for name in self.obs_sets))
         if not self.obs_sets:
             raise ValueError("obs_sets must name at least one observation set")
-        from veragmil_suite.evaluation.agents import parse_spec
-
         own = set(self.own_agents())
         for name, spec in self.agents.items():
             parse_spec(spec)  # a ValueError naming the accepted forms

@@ -16,7 +16,7 @@ from veragmil_suite.learning.observation_sets import (
 from veragmil_suite.study.logged_run import TRAINING_PROGRESS, LogProgress, console, run_logged
 from veragmil_suite.study.settings import ROBOMIMIC_TORCH_THREADS, StageError
 from veragmil_suite.utils.asset_paths import config_path
-from veragmil_suite.utils.distributed import Resources
+from veragmil_suite.utils.distributed import Resources, cluster_resources
 
 
 def training_config(
@@ -145,7 +145,5 @@ def train_piece(context: tuple[Path, int | None, bool, bool], config: dict) -> t
 def training_resources() -> Resources:
     """What a training run holds on a Ray node: a CPU per torch thread ($VERAGMIL_TORCH_THREADS, else robomimic's
     2), and a GPU when the cluster has one (robomimic trains on it)."""
-    from veragmil_suite.utils.distributed import cluster_resources
-
     threads = int(os.environ.get("VERAGMIL_TORCH_THREADS") or ROBOMIMIC_TORCH_THREADS)
     return Resources(cpus=threads, gpus=1 if cluster_resources().get("GPU", 0) >= 1 else 0)

@@ -15,10 +15,15 @@ from __future__ import annotations
 
 import contextlib
 import importlib.util
+import multiprocessing
 import os
 from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from typing import Any, TypeVar
+
+from veragmil_suite.utils import cli
 
 Piece = TypeVar("Piece")
 Result = TypeVar("Result")
@@ -59,8 +64,6 @@ def require_ray() -> None:
 
 def add_ray_argument(parser, pieces: str) -> None:
     """The ``--ray [ADDRESS]`` option of a console program whose ``pieces`` can run as Ray tasks."""
-    from veragmil_suite.utils import cli
-
     parser.add_argument(
         "--ray",
         nargs="?",
@@ -114,7 +117,7 @@ def ray_session(address: str | None, num_cpus: int | None = None) -> Iterator[st
         set_here = True
     else:
         set_here = False
-    import ray
+    import ray  # optional extra: ray
 
     connected_here = not ray.is_initialized()
     if connected_here:
@@ -134,7 +137,7 @@ def ray_session(address: str | None, num_cpus: int | None = None) -> Iterator[st
 
 def cluster_resources() -> dict[str, float]:
     """The connected Ray cluster's resources (CPU, GPU, memory...)."""
-    import ray
+    import ray  # optional extra: ray
 
     return dict(ray.cluster_resources())
 
@@ -229,9 +232,6 @@ class _ProcessBackend(_Backend):
     """A pool of fresh worker processes (forkserver where there is one), each given the context once."""
 
     def __init__(self, function, context, setup, processes: int):
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
-
         methods = multiprocessing.get_all_start_methods()
         mp_context = multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
         self.function = function
@@ -243,14 +243,10 @@ class _ProcessBackend(_Backend):
         return self.pool.submit(_local_piece, self.function, piece)
 
     def wait_one(self, handles):
-        from concurrent.futures import FIRST_COMPLETED, wait
-
         done, _ = wait(handles, return_when=FIRST_COMPLETED)
         return next(h for h in handles if h in done)  # the earliest submitted of those done
 
     def result(self, handle):
-        from concurrent.futures.process import BrokenProcessPool
-
         try:
             return handle.result()
         except BrokenProcessPool as error:
@@ -279,7 +275,7 @@ class _RayBackend(_Backend):
     """A Ray task per piece; the context is put in the object store once and handed to every task."""
 
     def __init__(self, function, context, setup, resources: Resources, max_retries: int):
-        import ray
+        import ray  # optional extra: ray
 
         self.ray = ray
         self.function, self.setup = function, setup

@@ -21,10 +21,12 @@ import warnings
 import gymnasium as gym
 import numpy as np
 import robosuite
+import robosuite.macros
 from gymnasium import spaces
 from robosuite.wrappers.gym_wrapper import GymWrapper
 
 from veragmil_suite.controllers.scoop_config import load_scoop_controller_config
+from veragmil_suite.data.recording import EpisodeRecorder
 from veragmil_suite.environments.episode import SUCCESS_HOLD_S, SuccessHold
 from veragmil_suite.environments.scoop import ScoopGranular
 from veragmil_suite.learning import robomimic_obs
@@ -114,8 +116,6 @@ class ScoopGranularGymEnv(GymWrapper):
         self.hold = SuccessHold(env.control_freq, success_hold_s)
         self.recorder = None
         if record:
-            from veragmil_suite.data.recording import EpisodeRecorder
-
             self.recorder = EpisodeRecorder(env)
         self.robosuite_obs = self.env.observation_spec()
 
@@ -170,8 +170,6 @@ class ScoopGranularGymEnv(GymWrapper):
         """With render_mode "rgb_array", a frame (height, width, 3) of render_camera, upright; else None."""
         if self.render_mode is None:
             return None
-        import robosuite.macros
-
         height, width = self.render_size
         camera = (self.env.render_camera or ["agentview"])[0]  # robosuite keeps a list
         frame = self.env.sim.render(camera_name=camera, height=height, width=width)

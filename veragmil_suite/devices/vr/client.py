@@ -9,6 +9,7 @@ connects, squeezes, traces a 5 cm circle with the right hand and prints what cam
 
 from __future__ import annotations
 
+import argparse
 import asyncio
 import json
 import math
@@ -185,8 +186,6 @@ class Client:
 
 
 def main(argv: list[str] | None = None) -> None:
-    import argparse
-
     p = argparse.ArgumentParser(description="Drive a VR server like the headset's page would, without a headset.")
     p.add_argument("url", help="the page's address, e.g. http://localhost:8765/")
     p.add_argument("--token", default=None, help="pairing token (servers bound beyond localhost)")

@@ -27,7 +27,10 @@ import struct
 import sys
 import time
 
+import cv2
+import mujoco
 import numpy as np
+from PIL import Image
 
 ENCODERS = ("pillow", "opencv")
 _LEN = struct.Struct("<I")
@@ -36,15 +39,11 @@ _LEN = struct.Struct("<I")
 def encode_jpeg(rgb: np.ndarray, quality: int = 80, encoder: str = "pillow") -> bytes:
     """JPEG bytes of an (H, W, 3) uint8 RGB image."""
     if encoder == "opencv":
-        import cv2
-
         ok, buf = cv2.imencode(".jpg", np.ascontiguousarray(rgb[:, :, ::-1]), [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
         if not ok:
             raise RuntimeError("OpenCV could not encode the frame")
         return buf.tobytes()
     if encoder == "pillow":
-        from PIL import Image
-
         out = io.BytesIO()
         Image.fromarray(np.ascontiguousarray(rgb)).save(out, format="JPEG", quality=int(quality))
         return out.getvalue()
@@ -64,7 +63,7 @@ def depth_colormap(depth_m: np.ndarray, near: float, far: float, out: np.ndarray
 def _depth_lut() -> np.ndarray:
     global _DEPTH_LUT
     if _DEPTH_LUT is None:
-        from matplotlib import colormaps
+        from matplotlib import colormaps  # heavy: matplotlib, only for the depth colormap
 
         lut = (colormaps["turbo"](np.linspace(1.0, 0.0, 256))[:, :3] * 255).astype(np.uint8)
         _DEPTH_LUT = np.concatenate([lut, np.zeros((1, 3), np.uint8)])  # entry 256: beyond far
@@ -127,8 +126,7 @@ class Renderer:
         return all(np.array_equal(getattr(a, name), getattr(m, name)) for name in arrays)
 
     def load(self, m) -> None:
-        import mujoco
-        from mujoco.gl_context import GLContext
+        from mujoco.gl_context import GLContext  # loads the GL backend MUJOCO_GL names: only when rendering
 
         if self._gl is None or not self._same_assets(m):
             if self._gl is not None:
@@ -166,8 +164,6 @@ class Renderer:
 
     def render(self, qpos: np.ndarray, mocap_pos: np.ndarray, mocap_quat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(rgb, depth in metres) of the model at these positions, upright."""
-        import mujoco
-
         m, d = self.model, self.data
         d.qpos[:] = qpos
         d.mocap_pos[:] = mocap_pos
@@ -185,8 +181,6 @@ class Renderer:
 
 def serve(config: dict, requests, replies) -> None:
     """Answer the parent's requests until it says stop or goes away."""
-    import mujoco
-
     renderer = Renderer(config["camera"], config["width"], config["height"])
     side_by_side = np.empty((config["height"], 2 * config["width"], 3), np.uint8)  # RGB | depth, one JPEG
     depth_range = config["depth_range"]  # None: from the first frame of each model

@@ -37,6 +37,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
 from veragmil_suite.devices.vr.protocol import PANELS_RGB, PANELS_RGB_DEPTH, pack_frame
@@ -289,8 +290,6 @@ class CameraStream:
         return reply
 
     def _send_model(self, model, timeout: float = 60.0) -> None:
-        import mujoco
-
         mujoco.mj_saveModel(model, str(self._model_file), None)
         _, info = self._request(("model", str(self._model_file)), timeout)
         self.context_builds = info["context_builds"]

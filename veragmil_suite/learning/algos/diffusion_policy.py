@@ -95,7 +95,7 @@ class DiffusionPolicyUNet(PolicyAlgo):
         self.ema = None
         self._ema_nets = None  # the EMA weights in a copy of the nets, brought up to date when acting
         if self.algo_config.ema.enabled:
-            from diffusers.training_utils import EMAModel
+            from diffusers.training_utils import EMAModel  # heavy: diffusers, only when used
 
             # the paper's EMA: decay 1 - (1 + step)^-power, at most 0.9999
             power = self.algo_config.ema.power
@@ -128,7 +128,7 @@ class DiffusionPolicyUNet(PolicyAlgo):
         if ddpm.enabled == ddim.enabled:
             raise ValueError("diffusion_policy needs exactly one of algo.ddpm.enabled and algo.ddim.enabled")
         if ddpm.enabled:
-            from diffusers.schedulers.scheduling_ddpm import DDPMScheduler
+            from diffusers.schedulers.scheduling_ddpm import DDPMScheduler  # heavy: diffusers, only when used
 
             scheduler = DDPMScheduler(
                 num_train_timesteps=ddpm.num_train_timesteps,
@@ -137,7 +137,7 @@ class DiffusionPolicyUNet(PolicyAlgo):
                 prediction_type=ddpm.prediction_type,
             )
             return scheduler, ddpm.num_inference_timesteps
-        from diffusers.schedulers.scheduling_ddim import DDIMScheduler
+        from diffusers.schedulers.scheduling_ddim import DDIMScheduler  # heavy: diffusers, only when used
 
         scheduler = DDIMScheduler(
             num_train_timesteps=ddim.num_train_timesteps,
@@ -157,7 +157,7 @@ class DiffusionPolicyUNet(PolicyAlgo):
         lr = self.optim_params["policy"]["learning_rate"]
         if lr.get("scheduler_type") != "cosine":
             return
-        from diffusers.optimization import get_cosine_schedule_with_warmup
+        from diffusers.optimization import get_cosine_schedule_with_warmup  # heavy: diffusers, only when used
 
         steps_per_epoch = self.global_config.experiment.epoch_every_n_steps
         if not steps_per_epoch:

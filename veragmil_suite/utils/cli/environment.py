@@ -13,6 +13,13 @@ import socket
 from pathlib import Path
 from typing import Any
 
+from robosuite.controllers import ALL_COMPOSITE_CONTROLLERS
+
+from veragmil_suite.controllers.scoop_config import ARM_CONTROLLERS
+from veragmil_suite.environments.scoop import MAX_GRAINS_PER_DEFAULT, ScoopGranular
+from veragmil_suite.evaluation.agents import SPEC_HELP, parse_agent_argument, parse_spec
+from veragmil_suite.models.foods import DEFAULT_PHYSICS, FOODS, PHYSICS
+from veragmil_suite.models.scoop_task import PHYSICS_TIMESTEP_S, check_physics_timestep, check_sleep_tolerance
 from veragmil_suite.utils.cli.files import checkpoint, json_file, one_line
 from veragmil_suite.utils.cli.handler import UsageError
 from veragmil_suite.utils.cli.kinds import (
@@ -37,10 +44,6 @@ class Controller(Kind):
     accepted = "OSC_POSE, a robosuite composite controller (BASIC, ...) or a composite-controller JSON file"
 
     def __call__(self, text: str) -> str:
-        from robosuite.controllers import ALL_COMPOSITE_CONTROLLERS
-
-        from veragmil_suite.controllers.scoop_config import ARM_CONTROLLERS
-
         if text == "OSC_POSE" or text in ALL_COMPOSITE_CONTROLLERS:
             return text
         if text in ARM_CONTROLLERS:
@@ -113,8 +116,6 @@ def check_port_free(host_name: str, number: int, option: str = "--vr-port") -> N
 
 
 def _scoop_parameters() -> dict[str, inspect.Parameter]:
-    from veragmil_suite.environments.scoop import ScoopGranular
-
     return {n: p for n, p in inspect.signature(ScoopGranular.__init__).parameters.items() if n != "self"}
 
 
@@ -179,9 +180,6 @@ def _check_env_value(name: str, value: Any, kwargs: dict, default: Any) -> None:
             return
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise count.refuse(value)
-        from veragmil_suite.environments.scoop import MAX_GRAINS_PER_DEFAULT
-        from veragmil_suite.models.foods import DEFAULT_PHYSICS, FOODS, PHYSICS
-
         # the food's own limit, or without a food the largest (each food's is checked where it is known)
         foods = [FOODS[kwargs["food"]]] if kwargs.get("food") in FOODS else list(FOODS.values())
         named = kwargs.get("physics") if kwargs.get("physics") in PHYSICS else DEFAULT_PHYSICS
@@ -194,8 +192,6 @@ def _check_env_value(name: str, value: Any, kwargs: dict, default: Any) -> None:
             )
         return
     if name in ("control_freq", "physics_timestep_s"):
-        from veragmil_suite.models.scoop_task import PHYSICS_TIMESTEP_S, check_physics_timestep
-
         freq, step = kwargs.get("control_freq", 20), kwargs.get("physics_timestep_s", PHYSICS_TIMESTEP_S)
         if name == "control_freq":
             if isinstance(freq, bool) or not isinstance(freq, (int, float)):
@@ -208,8 +204,6 @@ def _check_env_value(name: str, value: Any, kwargs: dict, default: Any) -> None:
             raise argparse.ArgumentTypeError(str(error)) from None
         return
     if name == "sleep_tolerance":
-        from veragmil_suite.models.scoop_task import check_sleep_tolerance
-
         try:
             check_sleep_tolerance(value)
         except ValueError as error:
@@ -235,13 +229,9 @@ class Agent(Kind):
 
     @property
     def accepted(self) -> str:
-        from veragmil_suite.evaluation.agents import SPEC_HELP
-
         return f"[NAME=]SPEC with SPEC {SPEC_HELP}"
 
     def __call__(self, text: str) -> str:
-        from veragmil_suite.evaluation.agents import parse_agent_argument, parse_spec
-
         try:
             _, spec = parse_agent_argument(text)
             parsed = parse_spec(spec)

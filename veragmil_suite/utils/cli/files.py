@@ -11,6 +11,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import h5py
+
+from veragmil_suite.learning import robomimic_compat
 from veragmil_suite.utils.cli.kinds import Kind, robomimic_algos
 
 # Suffixes our writers append to an output's name while it is written (datasets.py: ".partial"; pipeline.py:
@@ -154,16 +157,12 @@ def _json_value(path: str) -> Any:
 
 
 def _hdf5(path: str) -> None:
-    import h5py
-
     if not h5py.is_hdf5(path):
         raise ValueError("no HDF5 signature")
 
 
 def _robomimic_hdf5(path: str) -> None:
     """An HDF5 file laid out as robomimic's datasets are: a ``data`` group of demos with the env's metadata."""
-    import h5py
-
     _hdf5(path)
     with h5py.File(path, "r") as f:
         data = f.get("data")
@@ -187,7 +186,7 @@ def _robomimic_config(path: str) -> None:
     algos = robomimic_algos()
     if config.get("algo_name") not in algos:
         raise ValueError(f"algo_name {config.get('algo_name')!r} is not one of robomimic's: {', '.join(algos)}")
-    from robomimic.config import config_factory
+    from robomimic.config import config_factory  # heavy: robomimic, imports torch
 
     base = config_factory(config["algo_name"])
     try:
@@ -202,10 +201,8 @@ CHECKPOINT_KEYS = ("algo_name", "config", "env_metadata", "shape_metadata", "mod
 
 def _checkpoint(path: str) -> None:
     """A robomimic checkpoint: what robomimic's loader reads as a dict with the keys its tools use."""
-    from veragmil_suite.learning import robomimic_compat
-
     robomimic_compat.install()
-    from robomimic.utils.file_utils import load_dict_from_checkpoint
+    from robomimic.utils.file_utils import load_dict_from_checkpoint  # heavy: robomimic, imports torch
 
     try:
         checkpoint = load_dict_from_checkpoint(path)

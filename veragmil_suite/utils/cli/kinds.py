@@ -9,6 +9,18 @@ import math
 from collections.abc import Callable, Iterable
 from typing import Any
 
+from robosuite.models.robots import XArm7
+
+from veragmil_suite.devices.expert import PROFILES
+from veragmil_suite.environments.scoop import MIN_CONTROL_FREQ_HZ
+from veragmil_suite.learning import robomimic_compat
+from veragmil_suite.learning.algorithms import ALGORITHMS
+from veragmil_suite.learning.observation_sets import OBSERVATION_SETS
+from veragmil_suite.models.arena import ScoopArena
+from veragmil_suite.models.foods import FOODS, PHYSICS, TRAINING_FOODS, UNSEEN_FOODS
+from veragmil_suite.models.humanoid import check_robot
+from veragmil_suite.models.scoop_task import PHYSICS_TIMESTEP_S, check_physics_timestep
+
 
 class Kind:
     """An argparse type for one kind of value: ``kind(text)`` is the value, or an ArgumentTypeError saying what is
@@ -194,14 +206,9 @@ class ControlFreq(Kind):
 
     @property
     def accepted(self) -> str:
-        from veragmil_suite.environments.scoop import MIN_CONTROL_FREQ_HZ
-
         return f"a control rate in Hz of at least {MIN_CONTROL_FREQ_HZ:g}"
 
     def __call__(self, text: str, timestep_s: float | None = None) -> float:
-        from veragmil_suite.environments.scoop import MIN_CONTROL_FREQ_HZ
-        from veragmil_suite.models.scoop_task import PHYSICS_TIMESTEP_S, check_physics_timestep
-
         try:
             value = float(str(text).strip())
         except ValueError:
@@ -219,40 +226,28 @@ control_freq = ControlFreq()
 
 
 def _foods() -> list[str]:
-    from veragmil_suite.models.foods import FOODS, TRAINING_FOODS, UNSEEN_FOODS
-
     return list(dict.fromkeys([*TRAINING_FOODS, *UNSEEN_FOODS, *FOODS]))
 
 
 def _profiles() -> list[str]:
-    from veragmil_suite.devices.expert import PROFILES
-
     return sorted(PROFILES)
 
 
 def _algos() -> list[str]:
-    from veragmil_suite.learning.algorithms import ALGORITHMS
-
     return sorted(ALGORITHMS)
 
 
 def _observation_sets() -> list[str]:
-    from veragmil_suite.learning.observation_sets import OBSERVATION_SETS
-
     return sorted(OBSERVATION_SETS)
 
 
 def _physics() -> list[str]:
-    from veragmil_suite.models.foods import PHYSICS
-
     return list(PHYSICS)
 
 
 def robomimic_algos() -> list[str]:
-    from veragmil_suite.learning import robomimic_compat
-
     robomimic_compat.install()  # robomimic imports torchvision and mujoco_py, which the compatibility layer bridges
-    from robomimic.config.base_config import REGISTERED_CONFIGS
+    from robomimic.config.base_config import REGISTERED_CONFIGS  # heavy: robomimic, imports torch
 
     return sorted(REGISTERED_CONFIGS)
 
@@ -272,8 +267,6 @@ class Robot(Kind):
     accepted = "a robosuite robot that can hold the spoon (XArm7, Panda, ..., G1FixedLowerBody)"
 
     def __call__(self, text: str) -> str:
-        from veragmil_suite.models.humanoid import check_robot
-
         try:
             check_robot(text)
         except ValueError as error:
@@ -286,10 +279,6 @@ robot = Robot()
 
 def _cameras() -> list[str]:
     """The cameras of the task's arena and of its default robot (robosuite prefixes a robot's own with robot0_)."""
-    from robosuite.models.robots import XArm7
-
-    from veragmil_suite.models.arena import ScoopArena
-
     arena = [c.get("name") for c in ScoopArena().worldbody.iter("camera")]
     return arena + list(XArm7().cameras)
 
