@@ -99,8 +99,8 @@ def _range_text(what: str, low, high) -> str:
 
 
 class Choice(Kind):
-    """One of a set of names (given, or produced by a function called at each use, so that building a parser
-    imports nothing heavy and a name registered later, such as an operator profile, is accepted)."""
+    """One of a set of names (given, or produced by a function called at each use, so that a name registered later,
+    such as an operator profile, is accepted)."""
 
     def __init__(self, what: str, values: Iterable[str] | Callable[[], Iterable[str]]):
         self.what = what
