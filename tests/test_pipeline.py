@@ -360,6 +360,22 @@ def test_a_study_of_other_foods_leaves_another_studys_merged_dataset_alone(tmp_p
     assert _tree(out) == before
 
 
+def test_a_stage_called_as_a_function_logs_its_output_and_fails_with_the_tail_of_its_log(tmp_path):
+    """The study's recording is a function in a fresh interpreter (run_logged_call): everything it prints, Python's
+    and C's, is in its log; its progress is read from that log; an exception fails the stage with the log's tail."""
+    from helpers.children import say_then
+
+    from veragmil_suite.study.logged_run import RECORDING_PROGRESS, LogProgress, run_logged_call
+
+    log = tmp_path / "stage.log"
+    lines = ["  saved as demo_0 (1/2)", "  saved as demo_1 (2/2)"]
+    bar = LogProgress(2, RECORDING_PROGRESS, "stage", "demo")
+    assert run_logged_call(say_then, dict(lines=lines, c_line="from C"), log, "stage", progress=bar) > 0
+    assert log.read_text().splitlines() == [*lines, "from C"]
+    with pytest.raises(StageError, match=r"(?s)failing stage failed \(exit 1\); log .*stage.log:.*before.*it broke"):
+        run_logged_call(say_then, dict(lines=["before"], error="it broke"), log, "failing stage")
+
+
 def test_a_shorter_recording_is_continued_to_the_demos_one_run_records(tmp_path):
     whole, grown = tmp_path / "whole.hdf5", tmp_path / "grown.hdf5"
     kwargs = dict(food="pasta", profile="expert", seed=5, n_grains=12, horizon=250)

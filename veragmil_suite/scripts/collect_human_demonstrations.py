@@ -37,15 +37,21 @@ import os
 import sys
 import time
 
-import numpy as np
 import robosuite
 from robosuite.controllers import ALL_COMPOSITE_CONTROLLERS, load_composite_controller_config
 
 from veragmil_suite.controllers.scoop_config import load_scoop_controller_config
-from veragmil_suite.data.collection import FrameCap, local_attempts, parallel_attempts
+from veragmil_suite.data.collection import (
+    KEEP_POLICIES,
+    CollectionOutcome,
+    FrameCap,
+    collect,
+    local_attempts,
+    open_writer,
+    parallel_attempts,
+    recording_env_kwargs,
+)
 from veragmil_suite.data.recording import EpisodeRecorder
-from veragmil_suite.data.schema import DatasetError, env_meta, provenance
-from veragmil_suite.data.writer import DemoWriter
 from veragmil_suite.devices.expert import PROFILES
 from veragmil_suite.devices.operators import TeleopOperator, make_operator
 from veragmil_suite.environments.episode import SUCCESS_HOLD_S
@@ -59,7 +65,6 @@ from veragmil_suite.utils.rendering import use_headless_rendering
 # robosuite's devices (its collect_human_demonstrations.py), then ours
 ROBOSUITE_DEVICES = ("keyboard", "spacemouse", "dualsense", "mjgui")
 DEVICES = (*ROBOSUITE_DEVICES, "vr", "scripted")
-KEEP_POLICIES = ("ask", "all", "success")
 # robosuite's env_configuration values mean something for two-robot tasks only; this task has one robot
 ENV_CONFIGURATIONS = ("default",)
 
@@ -248,28 +253,18 @@ def output_path(args: argparse.Namespace) -> str:
 
 def env_kwargs_from_args(args) -> dict:
     """robosuite.make keyword arguments (besides the env name) for the command line, JSON-serializable."""
-    cameras = list(args.camera_names or [])
-    kwargs = dict(
-        robots=args.robots,
-        food=args.food,
-        controller_configs=controller_config(args.controller, args.robots, absolute=args.device == "mjgui"),
+    return recording_env_kwargs(
+        args.robots,
+        args.food,
+        controller_config(args.controller, args.robots, absolute=args.device == "mjgui"),
         control_freq=args.control_freq,
         horizon=args.horizon,
-        ignore_done=False,
-        reward_shaping=False,
-        use_object_obs=True,
-        use_camera_obs=bool(cameras),
-        has_offscreen_renderer=bool(cameras),
-        camera_names=cameras or "overhead",
-        camera_heights=args.camera_height,
-        camera_widths=args.camera_width,
-        camera_depths=bool(args.depth),
+        n_grains=args.n_grains,
+        physics=args.physics,
+        cameras=args.camera_names or (),
+        image_size=(args.camera_height, args.camera_width),
+        depth=args.depth,
     )
-    if args.n_grains is not None:
-        kwargs["n_grains"] = args.n_grains
-    if args.physics is not None:
-        kwargs["physics"] = args.physics
-    return kwargs
 
 
 def controller_config(value: str, robot: str, absolute: bool = False) -> dict:
@@ -295,29 +290,6 @@ def controller_config(value: str, robot: str, absolute: bool = False) -> dict:
     return config
 
 
-def ask_keep(prompt: str) -> bool:
-    while True:
-        try:
-            answer = input(prompt).strip().lower()
-        except EOFError:
-            return False
-        if answer in ("", "y", "yes"):
-            return True
-        if answer in ("n", "no"):
-            return False
-
-
-def episode_line(n: int, metrics: dict, steps: int, reason: str) -> str:
-    m = metrics
-    line = (
-        f"episode {n}: {'SUCCESS' if m['success'] else 'failure'} ({reason}), {steps} steps; "
-        f"in spoon {m['grains_in_spoon']} ({m['spoon_volume_cm3']:.2f} cm3); "
-        f"spilled {m['grains_spilled']} pieces, {m['spilled_volume_cm3']:.2f} cm3 "
-        f"({100 * m['spill_fraction']:.1f}% of scooped); time {m['completion_time_s']:.2f} s"
-    )
-    return line + (f"; physics: {m['physics_error']}" if m["physics_error"] else "")
-
-
 @command(build_parser)
 def main(args: argparse.Namespace) -> int:
     """veragmil-collect: record demonstrations (see --help)."""
@@ -338,33 +310,19 @@ def main(args: argparse.Namespace) -> int:
     output = output_path(args)
 
     env_kwargs = env_kwargs_from_args(args)
-    writer = DemoWriter(
-        output,
-        env_meta(env_kwargs),
-        provenance(
-            device=args.device,
-            operator=operator_name,
-            food=args.food,
-            robot=args.robots,
-            source=source,
+    try:
+        writer, args.seed = open_writer(
+            output,
+            env_kwargs,
+            args.device,
+            operator_name,
+            args.seed,
+            args.valid_ratio,
             controller=args.controller,
-            control_freq=args.control_freq,
-            env_seed=args.seed,
             profile=args.profile if source == "scripted" else "",
-        ),
-        valid_ratio=args.valid_ratio,
-    )
-    last = max(writer.seeds_used, default=None)
-    if args.seed is None:
-        args.seed = 0 if last is None else last + 1
-    elif last is not None and args.seed <= last:
-        writer.close()
-        raise UsageError(
-            f"{output} already holds attempts with seeds up to {last} (attempt k runs with seed SEED + k, and a "
-            f"seed gives the same episode again): --seed {args.seed} would repeat them; omit --seed to continue "
-            f"from {last + 1}, or pass a seed above {last}"
         )
-    writer.provenance["env_seed"] = args.seed
+    except ValueError as e:
+        raise UsageError(str(e)) from None
 
     # the environment is built here in every case: a bad setting is refused before anything is recorded (nothing is
     # written before the first episode), and with workers it settles the piles: local workers read them from the
@@ -390,17 +348,17 @@ def main(args: argparse.Namespace) -> int:
         piles = env.settled_piles() if args.ray is not None else None
         env.close()
         env = None
-        attempts_iter = parallel_attempts(args, env_kwargs, piles)
+        attempts = parallel_attempts(env_kwargs, args.profile, args.seed, args.success_hold, args.processes,
+                                     args.ray, piles)  # fmt: skip
     else:
         try:
             operator = make_operator(args, env)
         except SystemExit:
             writer.close()
             raise
-        recorder = EpisodeRecorder(env)
         realtime = source == "human" and pace is None
-        attempts_iter = local_attempts(env, recorder, operator, args, render, realtime=realtime, pace=pace)
-    kept, attempts, results = 0, 0, []
+        recorder = EpisodeRecorder(env)
+        attempts = local_attempts(env, recorder, operator, args.seed, args.success_hold, render, realtime, pace)
     if not args.quiet:
         workers = f", {args.processes} workers" if args.processes > 1 else ""
         workers = ", on Ray" if args.ray is not None else workers
@@ -408,53 +366,9 @@ def main(args: argparse.Namespace) -> int:
             f"recording {args.food} with {args.device} ({operator_name}) into {output}; keep: {keep_policy}" + workers
         )
     teleop = operator if isinstance(operator, TeleopOperator) else None
-    discarded = 0
-    failed = None  # the write the disk refused: the collection stops there
     try:
-        while kept < args.episodes and (max_attempts is None or attempts < max_attempts):
-            if teleop is not None:
-                teleop.show_progress(
-                    f"episode {attempts + 1} | kept {kept}/{args.episodes} | discarded {discarded} | "
-                    f"{os.path.basename(output)}"
-                )
-            seed, reason, episode = next(attempts_iter)
-            attempts += 1
-            if episode is None:
-                continue
-            episode.attrs["attempt"] = attempts
-            metrics = episode.metrics
-            print(episode_line(attempts, metrics, episode.num_samples, reason), flush=True)
-            said = operator.command if operator is not None else None
-            if keep_policy == "ask" and said not in ("keep", "discard", "reset"):
-                verdict = operator.wait_for_verdict() if isinstance(operator, TeleopOperator) else None
-                said = verdict or ("keep" if ask_keep("keep this episode? [Y/n] ") else "discard")
-            keep = {
-                "all": True,
-                "success": bool(metrics["success"]),
-                "ask": said == "keep",
-            }[keep_policy]
-            if isinstance(operator, TeleopOperator):
-                operator.end()
-            results.append(metrics)
-            try:
-                if keep:
-                    name = writer.write(episode)
-                else:
-                    writer.log_discarded(metrics, attrs=dict(attempt=attempts, end_reason=reason, seed=seed))
-            except DatasetError as e:
-                failed = f"{e}: episode {attempts} (seed {seed}) is not saved; all saved before it are ({kept} here)"
-                break
-            if keep:
-                kept += 1
-                print(f"  saved as {name} ({kept}/{args.episodes})", flush=True)
-            else:
-                discarded += 1
-                print("  discarded", flush=True)
-    except KeyboardInterrupt:
-        kept = len(writer.written)
-        print(f"\ninterrupted: the episode in progress is dropped; {kept} episodes saved to {output}")
+        outcome = collect(writer, attempts, args.episodes, keep_policy, max_attempts, operator)
     finally:
-        attempts_iter.close()
         if teleop is not None:
             saved = len(writer.written)
             teleop.close(farewell=f"{saved} demo{'' if saved == 1 else 's'} saved to {output}")
@@ -465,28 +379,21 @@ def main(args: argparse.Namespace) -> int:
         if env is not None:
             env.close()
         writer.close()
-    _print_summary(results, kept, output)
-    if failed is not None:
-        print(f"veragmil-collect: {failed}", file=sys.stderr)
+    return finish(outcome)
+
+
+def finish(outcome: CollectionOutcome) -> int:
+    """Prints the collection's summary (and why it stopped short, on stderr); returns the exit status: 2 when the
+    disk refused a write, 1 when fewer demos were kept than asked, else 0."""
+    if (summary := outcome.summary()) is not None:
+        print(summary)
+    if outcome.failed is not None:
+        print(f"veragmil-collect: {outcome.failed}", file=sys.stderr)
         return 2
-    if kept < args.episodes:
-        print(f"veragmil-collect: saved {kept} of {args.episodes} requested episodes", file=sys.stderr)
+    if outcome.kept < outcome.requested:
+        print(f"veragmil-collect: saved {outcome.kept} of {outcome.requested} requested episodes", file=sys.stderr)
         return 1
     return 0
-
-
-def _print_summary(results: list[dict], kept: int, path: str) -> None:
-    if not results:
-        return
-    success = np.mean([r["success"] for r in results])
-    spill = np.mean([r["grains_spilled"] for r in results])
-    spill_vol = np.mean([r["spilled_volume_cm3"] for r in results])
-    times = [r["completion_time_s"] for r in results if r["success"]]
-    print(
-        f"{len(results)} attempts, {kept} saved to {path}: success {100 * success:.0f}%, "
-        f"spilled {spill:.1f} pieces ({spill_vol:.2f} cm3) on average"
-        + (f", completion {np.mean(times):.2f} s on success" if times else "")
-    )
 
 
 if __name__ == "__main__":

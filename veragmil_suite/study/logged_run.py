@@ -1,12 +1,17 @@
-"""Our console programs run in a child process, their output kept in a log file and shown as a progress bar."""
+"""A stage run in a child process (a console program, or a function in a fresh interpreter), its output kept in a
+log file and shown as a progress bar."""
 
 from __future__ import annotations
 
+import contextlib
+import multiprocessing
 import os
 import re
 import subprocess
 import sys
 import time
+import traceback
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -43,33 +48,104 @@ def run_logged(
 ) -> float:
     """Runs a command (with ``environ`` added to this environment) with its output in ``log_path``, advancing a
     progress bar from the log when ``progress`` is given; returns its wall time, raises StageError on failure."""
-    env = dict(os.environ, **(environ or {}))
-    use_headless_rendering(environ=env)
-    env.setdefault("PYNPUT_BACKEND", "dummy")
     start = time.perf_counter()
     with (
         open(log_path, "w") as log,
-        subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env) as child,
+        subprocess.Popen(
+            command, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=child_environ(environ)
+        ) as child,
     ):
         try:
-            code = child.wait() if progress is None else _follow(child, log_path, progress)
+            code = child.wait() if progress is None else _follow(child.poll, log_path, progress)
         except BaseException:  # interrupted: the child goes too, as subprocess.call would see to
             child.kill()
             raise
-    if code != 0:
-        tail = log_path.read_text(errors="replace")[-3000:]
-        raise StageError(f"{what} failed (exit {code}); log {log_path}:\n{tail}")
+    _check_exit(code, log_path, what)
     return time.perf_counter() - start
 
 
-def _follow(child: subprocess.Popen, log_path: Path, progress: LogProgress) -> int:
-    """Waits for ``child``, its progress read from the lines it writes to ``log_path``; returns its exit code."""
+def run_logged_call(
+    function: Callable[..., object],
+    kwargs: dict,
+    log_path: Path,
+    what: str,
+    progress: LogProgress | None = None,
+) -> float:
+    """Calls ``function(**kwargs)`` in a fresh interpreter (a spawned process: MuJoCo, rendering and worker pools of
+    its own), its output in ``log_path`` as ``run_logged``'s; returns its wall time, raises StageError when it
+    raises. ``function`` must be importable by name (a module-level function)."""
+    start = time.perf_counter()
+    log_path = Path(log_path)
+    log_path.write_text("")
+    child = multiprocessing.get_context("spawn").Process(target=_logged_call, args=(function, kwargs, str(log_path)))
+    with _environ(child_environ()):
+        child.start()
+    try:
+        if progress is not None:
+            _follow(lambda: child.exitcode, log_path, progress)
+        child.join()
+    except BaseException:  # interrupted: the child goes too
+        child.kill()
+        child.join()
+        raise
+    _check_exit(child.exitcode, log_path, what)
+    return time.perf_counter() - start
+
+
+def child_environ(extra: dict[str, str] | None = None) -> dict[str, str]:
+    """A stage's environment: this one with ``extra``, headless rendering without a display, and pynput's dummy
+    backend (robosuite's devices import it, and it wants an X server)."""
+    env = dict(os.environ, **(extra or {}))
+    use_headless_rendering(environ=env)
+    env.setdefault("PYNPUT_BACKEND", "dummy")
+    return env
+
+
+@contextlib.contextmanager
+def _environ(env: dict[str, str]) -> Iterator[None]:
+    """This process's environment replaced by ``env`` for the block (a spawned child inherits it at start)."""
+    saved = dict(os.environ)
+    os.environ.clear()
+    os.environ.update(env)
+    try:
+        yield
+    finally:
+        os.environ.clear()
+        os.environ.update(saved)
+
+
+def _logged_call(function: Callable[..., object], kwargs: dict, log_path: str) -> None:
+    """The child of run_logged_call: its standard output and error (Python's and C's) go to the log; an exception
+    is logged and exits 1."""
+    with open(log_path, "a") as log, open(os.devnull) as nothing:
+        os.dup2(log.fileno(), 1)
+        os.dup2(log.fileno(), 2)
+        os.dup2(nothing.fileno(), 0)
+    sys.stdout.reconfigure(line_buffering=True)
+    sys.stderr.reconfigure(line_buffering=True)
+    try:
+        function(**kwargs)
+    except BaseException:
+        traceback.print_exc()
+        sys.stdout.flush()
+        sys.exit(1)
+
+
+def _check_exit(code: int | None, log_path: Path, what: str) -> None:
+    if code != 0:
+        tail = Path(log_path).read_text(errors="replace")[-3000:]
+        raise StageError(f"{what} failed (exit {code}); log {log_path}:\n{tail}")
+
+
+def _follow(poll: Callable[[], int | None], log_path: Path, progress: LogProgress) -> int:
+    """Waits for a child (``poll``: its exit code, None while it runs), its progress read from the lines it writes
+    to ``log_path``; returns its exit code."""
     pattern = re.compile(progress.pattern, re.MULTILINE)
     bar = tqdm(total=progress.total, desc=progress.desc, unit=progress.unit)
     with open(log_path, errors="replace") as log, bar:
         pending = ""
         while True:
-            code = child.poll()
+            code = poll()
             pending += log.read()
             complete, _, pending = pending.rpartition("\n")
             found = pattern.findall(complete)

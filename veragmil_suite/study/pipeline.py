@@ -1,9 +1,11 @@
 """
 The paper's pipeline from scripted data: record demonstrations, train robomimic on them, evaluate the checkpoints.
 
-Each stage runs our own console programs in a child process (veragmil-collect, veragmil-train), exactly as a user
-would type them, with its output kept in a log file beside its results; evaluation goes through
-veragmil_suite.evaluation. veragmil-quickstart and veragmil-study are thin command lines over this module.
+Recording and training each run in a child process, their output kept in a log file beside their results:
+recording calls, in a fresh interpreter, the function ``veragmil-collect --device scripted`` runs
+(veragmil_suite.data.collection.record_scripted); training runs veragmil-train (robomimic's train.py) as a user
+would type it. Evaluation goes through veragmil_suite.evaluation. veragmil-quickstart and veragmil-study are thin
+command lines over this module.
 
 A run resumes in its output directory: every piece that is complete is skipped (and said so), so an interrupted
 or partial grid continues where it stopped and a larger one reuses the pieces of a smaller one.
@@ -34,14 +36,7 @@ from pathlib import Path
 from veragmil_suite.evaluation.evaluate import evaluate
 from veragmil_suite.evaluation.reporting import write_learning_curves, write_seed_tables
 from veragmil_suite.learning.algorithms import ALGORITHMS
-from veragmil_suite.study.record import (
-    check_merged,
-    check_recording,
-    demo_mask,
-    food_files,
-    food_seed,
-    record_scripted_dataset,
-)
+from veragmil_suite.study.record import check_recordings, demo_mask, record_scripted_dataset
 from veragmil_suite.study.settings import EVAL_SEED_OFFSET, PipelineSettings
 from veragmil_suite.study.training import finished_training, train_piece, training_config, training_resources
 from veragmil_suite.utils.distributed import Resources, cluster_resources, ray_session, run_pieces
@@ -88,20 +83,7 @@ def check_output_dir(settings: PipelineSettings, runs: list[dict]) -> None:
     """
     out = Path(settings.output_dir)
     for profile in settings.profiles:
-        dataset = out / "data" / f"{profile}.hdf5"
-        files = food_files(dataset, settings.train_foods)
-        for food, file in zip(settings.train_foods, files):
-            check_recording(
-                file,
-                food,
-                profile=profile,
-                seed=food_seed(settings.seed, food),
-                horizon=settings.horizon,
-                n_grains=settings.n_grains,
-                robot=settings.robot,
-                physics=settings.physics,
-            )
-        check_merged(dataset, files)
+        check_recordings(settings, profile, out / "data" / f"{profile}.hdf5")
     for run in runs:
         finished_training(run["config"], out / "runs")
 
@@ -141,19 +123,12 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True, verbose: boo
             say(f"recording {max(counts)} scripted '{profile}' demos of each of {settings.train_foods}")
             seconds = record_scripted_dataset(
                 out / "data" / f"{profile}.hdf5",
-                settings.train_foods,
-                counts,
-                profile=profile,
-                seed=settings.seed,
-                horizon=settings.horizon,
-                n_grains=settings.n_grains,
-                workers=settings.processes,
+                settings,
+                profile,
                 say=say,
                 ray=address,
-                robot=settings.robot,
                 progress=progress,
                 echo=verbose,
-                physics=settings.physics,
             )
             note(f"record {profile}", seconds or None)
         checkpoints = _train_runs(runs, settings, out / "runs", address, say, note, progress, verbose)

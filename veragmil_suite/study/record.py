@@ -10,6 +10,7 @@ from pathlib import Path
 
 import h5py
 
+from veragmil_suite.data.collection import record_scripted, recording_env_kwargs
 from veragmil_suite.data.datasets import merge_datasets
 from veragmil_suite.data.schema import DatasetError, demo_names, open_dataset, seeds_used
 from veragmil_suite.data.writer import updated_file
@@ -21,8 +22,8 @@ from veragmil_suite.models.foods import (
     get_food,
     with_recorded_physics,
 )
-from veragmil_suite.study.logged_run import RECORDING_PROGRESS, LogProgress, console, run_logged
-from veragmil_suite.study.settings import FOOD_SEED_STRIDE, StageError
+from veragmil_suite.study.logged_run import RECORDING_PROGRESS, LogProgress, run_logged_call
+from veragmil_suite.study.settings import FOOD_SEED_STRIDE, PipelineSettings, StageError
 
 
 def food_seed(seed: int, food: str) -> int:
@@ -129,19 +130,21 @@ def record_food(
         else:
             demos, seed = demos - held["demos"], held["next_seed"]
     path.parent.mkdir(parents=True, exist_ok=True)
-    command = [
-        *console("veragmil-collect"),
-        *("--device", "scripted", "--profile", profile, "--food", food),
-        *("--episodes", str(demos), "--output", str(path), "--seed", str(seed), "--workers", str(workers)),
-        *("--horizon", str(horizon), "--robot", robot, "--physics", physics, "--quiet", "--cameras", *cameras),
-    ]
-    if n_grains is not None:
-        command += ["--n-grains", str(n_grains)]
-    if ray is not None:
-        command += ["--ray", ray]
+    env_kwargs = recording_env_kwargs(robot, food, horizon=horizon, n_grains=n_grains, physics=physics, cameras=cameras)
+    call = dict(output=str(path), env_kwargs=env_kwargs, episodes=demos, profile=profile, seed=seed)
+    call.update(processes=workers, ray=ray)
     log = path.with_name(f"{path.stem}.seed{seed}.log")
     bar = LogProgress(demos, RECORDING_PROGRESS, f"{profile} {food}", "demo", echo) if progress else None
-    return run_logged(command, log, f"recording {food} ({profile})", progress=bar)
+    return run_logged_call(_record, call, log, f"recording {food} ({profile})", progress=bar)
+
+
+def _record(**kwargs) -> None:
+    """A food's recording in the stage's child process (record_scripted); fails when fewer demos were kept."""
+    outcome = record_scripted(**kwargs)
+    if (summary := outcome.summary()) is not None:
+        print(summary, flush=True)
+    if outcome.failed is not None or outcome.kept < outcome.requested:
+        raise StageError(outcome.failed or f"saved {outcome.kept} of {outcome.requested} requested demos")
 
 
 def demo_mask(n: int) -> str:
@@ -207,50 +210,59 @@ def food_files(path: Path, foods: list[str]) -> list[Path]:
     return [Path(path).with_suffix("") / f"{food}.hdf5" for food in foods]
 
 
+def recording_settings(settings: PipelineSettings) -> dict:
+    """What a study's every recording is made with (record_food's and check_recording's keyword arguments)."""
+    return dict(horizon=settings.horizon, n_grains=settings.n_grains, robot=settings.robot, physics=settings.physics)
+
+
+def check_recordings(settings: PipelineSettings, profile: str, dataset: Path) -> None:
+    """
+    Refuses a study whose recordings of ``profile`` (merged into ``dataset``) were made with other settings or
+    merge other foods, before anything is written.
+
+    Raises:
+        StageError: [naming the first file that belongs to another study]
+    """
+    files = food_files(dataset, settings.train_foods)
+    for food, file in zip(settings.train_foods, files):
+        seed = food_seed(settings.seed, food)
+        check_recording(file, food, profile=profile, seed=seed, **recording_settings(settings))
+    check_merged(dataset, files)
+
+
 def record_scripted_dataset(
     path: Path,
-    foods: list[str],
-    demo_counts: list[int],
+    settings: PipelineSettings,
     profile: str = "expert",
-    seed: int = 0,
-    horizon: int = 400,
-    n_grains: int | None = None,
-    cameras: tuple[str, ...] = (),
-    workers: int = 1,
     say=print,
     ray: str | None = None,
-    robot: str = "XArm7",
     progress: bool = False,
     echo: bool = False,
-    physics: str = DEFAULT_PHYSICS,
 ) -> float:
-    """Records (or finds complete) max(``demo_counts``) scripted demos of each food, one file per food beside
-    ``path`` (with ``progress``, a bar per food; with ``echo``, the collectors' lines), and merges them into
-    ``path`` with a mask per demo count; returns the seconds spent recording."""
+    """Records (or finds complete) the study's largest demo count of ``profile``'s scripted demos of each training
+    food, one file per food beside ``path``, in ``settings.processes`` processes or on the Ray cluster at ``ray``
+    (with ``progress``, a bar per food; with ``echo``, the recorders' lines), and merges them into ``path`` with a
+    mask per demo count; returns the seconds spent recording."""
     path = Path(path)
+    counts = settings.demos_per_food
     elapsed = 0.0
-    files = []
-    for food, file in zip(foods, food_files(path, foods)):
+    files = food_files(path, settings.train_foods)
+    for food, file in zip(settings.train_foods, files):
         seconds = record_food(
             file,
             food,
-            max(demo_counts),
+            max(counts),
             profile=profile,
-            seed=food_seed(seed, food),
-            horizon=horizon,
-            n_grains=n_grains,
-            cameras=cameras,
-            workers=workers,
+            seed=food_seed(settings.seed, food),
+            workers=settings.processes,
             ray=ray,
-            robot=robot,
             progress=progress,
             echo=echo,
-            physics=physics,
+            **recording_settings(settings),
         )
         if seconds is None:
-            say(f"skipping recording {profile} {food}: {file} holds its {max(demo_counts)} demos")
+            say(f"skipping recording {profile} {food}: {file} holds its {max(counts)} demos")
         else:
             elapsed += seconds
-        files.append(file)
-    merge_profile_dataset(path, files, demo_counts)
+    merge_profile_dataset(path, files, counts)
     return elapsed
