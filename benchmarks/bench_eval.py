@@ -14,11 +14,12 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
 
 # OSMesa whatever the display (veragmil_suite.utils.rendering's forced choice), set before robosuite is imported
 os.environ["MUJOCO_GL"] = os.environ["PYOPENGL_PLATFORM"] = "osmesa"
 os.environ.setdefault("PYNPUT_BACKEND", "dummy")
+
+from veragmil_suite.utils.timing import stopwatch  # noqa: E402  (the package imports robosuite: after MUJOCO_GL)
 
 TARGET_RATIO = 1.7
 SECONDS_PER_MINUTE = 60.0
@@ -28,11 +29,11 @@ def bench(spec: str, food: str, episodes: int, processes: int, horizon: int, see
     """Runs ``episodes`` episodes of one agent on ``food`` in ``processes`` workers; returns the rates."""
     from veragmil_suite.evaluation.evaluate import evaluate
 
-    start = time.perf_counter()
-    result = evaluate(
-        {"agent": spec}, [food], episodes, processes=processes, seed=seed, horizon=horizon, progress=False
-    )
-    wall = time.perf_counter() - start
+    with stopwatch() as elapsed:
+        result = evaluate(
+            {"agent": spec}, [food], episodes, processes=processes, seed=seed, horizon=horizon, progress=False
+        )
+    wall = elapsed.wall_s
     steps = sum(e.steps for e in result.episodes)
     return dict(
         processes=processes,

@@ -20,7 +20,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -29,6 +28,8 @@ SAMPLE_DATA = ROOT / "demos" / "scoop.hdf5"
 # OSMesa whatever the display (veragmil_suite.utils.rendering's forced choice), set before robosuite is imported
 os.environ["MUJOCO_GL"] = os.environ["PYOPENGL_PLATFORM"] = "osmesa"
 os.environ.setdefault("PYNPUT_BACKEND", "dummy")
+
+from veragmil_suite.utils.timing import stopwatch  # noqa: E402  (the package imports robosuite: after MUJOCO_GL)
 
 # (scheduler, denoising steps, actions executed per prediction): the config's case first
 CASES = (("ddim", 10, 8), ("ddim", 5, 8), ("ddpm", 100, 8), ("ddim", 10, 1))
@@ -81,10 +82,10 @@ def bench_case(config, ckpt, scheduler: str, denoising_steps: int, chunk: int, s
     policy(ob=observations[0])  # warm-up: the EMA weights copied in, the first prediction
     wall, cpu = [], []
     for ob in observations[1:]:
-        start, start_cpu = time.perf_counter(), time.process_time()
-        policy(ob=ob)
-        wall.append(time.perf_counter() - start)
-        cpu.append(time.process_time() - start_cpu)
+        with stopwatch() as elapsed:
+            policy(ob=ob)
+        wall.append(elapsed.wall_s)
+        cpu.append(elapsed.cpu_s)
     wall, cpu = np.array(wall), np.array(cpu)
     predicting = np.argsort(cpu)[-max(1, steps // chunk) :]  # the costliest steps are those that predict
     return dict(

@@ -56,6 +56,7 @@ def main(argv: list[str] | None = None) -> int:
     from veragmil_suite.study.logged_run import console
     from veragmil_suite.study.training import train_piece, training_config, training_resources
     from veragmil_suite.utils.distributed import THIS_MACHINE, ray_session, run_pieces
+    from veragmil_suite.utils.timing import stopwatch
 
     print(f"load average before: {_load()}", flush=True)
     work = Path(tempfile.mkdtemp(prefix="bench_ray_"))
@@ -94,9 +95,9 @@ def main(argv: list[str] | None = None) -> int:
         times: dict[str, list[float]] = {"local": [], "ray": []}
         for _ in range(args.repeats):
             for side, run in (("local", local), ("ray", on_ray)):
-                start = time.perf_counter()
-                run()
-                times[side].append(time.perf_counter() - start)
+                with stopwatch() as elapsed:
+                    run()
+                times[side].append(elapsed.wall_s)
         a, b = min(times["local"]), min(times["ray"])
         print(f"{name:<48} {a:>8.1f} {b:>8.1f} {b / a:>9.2f}", flush=True)
 

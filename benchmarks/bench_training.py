@@ -34,6 +34,8 @@ CONFIG_DIR = ROOT / "configs" / "json"
 os.environ["MUJOCO_GL"] = os.environ["PYOPENGL_PLATFORM"] = "osmesa"
 os.environ.setdefault("PYNPUT_BACKEND", "dummy")
 
+from veragmil_suite.utils.timing import stopwatch  # noqa: E402  (the package imports robosuite: after MUJOCO_GL)
+
 
 def bench_algo(name: str, dataset: str, steps: int) -> dict:
     """Times ``steps`` gradient steps of config ``name`` on ``dataset`` (after 2 warm-up steps)."""
@@ -63,9 +65,9 @@ def bench_algo(name: str, dataset: str, steps: int) -> dict:
     trainset, _ = train_utils.load_data_for_training(config, obs_keys=shape_meta["all_obs_keys"])
     loader = DataLoader(trainset, batch_size=config.train.batch_size, shuffle=True, drop_last=True)
     train_utils.run_epoch(model=model, data_loader=loader, epoch=1, num_steps=2)
-    start, start_cpu = time.perf_counter(), time.process_time()
-    log = train_utils.run_epoch(model=model, data_loader=loader, epoch=1, num_steps=steps)
-    elapsed, cpu = time.perf_counter() - start, time.process_time() - start_cpu
+    with stopwatch() as timed:
+        log = train_utils.run_epoch(model=model, data_loader=loader, epoch=1, num_steps=steps)
+    elapsed, cpu = timed.wall_s, timed.cpu_s
     # a sample's steps: the sequence and the frames stacked before it (Diffusion Policy's observation history)
     batch, seq = config.train.batch_size, config.train.frame_stack - 1 + config.train.seq_length
     # robomimic's own timers (minutes summed over the epoch): where an epoch's time goes

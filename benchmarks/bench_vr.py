@@ -53,6 +53,7 @@ from veragmil_suite.devices.vr.client import HAND, Client, controller, pose_mess
 from veragmil_suite.devices.vr.protocol import unpack_frame  # noqa: E402
 from veragmil_suite.devices.vr.render import Renderer, depth_colormap, encode_jpeg  # noqa: E402
 from veragmil_suite.models.foods import PHYSICS  # noqa: E402
+from veragmil_suite.utils.timing import per_call  # noqa: E402
 
 
 def make(env_name: str, control_freq: int = 20, physics: str | None = None):
@@ -76,11 +77,8 @@ def env_action(env, device, action: dict) -> np.ndarray:
 
 
 def timed(fn, n: int) -> float:
-    fn()
-    t0 = time.perf_counter()
-    for _ in range(n):
-        fn()
-    return 1000 * (time.perf_counter() - t0) / n
+    """Milliseconds per call of ``fn`` (after one untimed call)."""
+    return 1000 * per_call(fn, n).wall_s
 
 
 # ------------------------------------------------------------------------------------------------ 1. render, encode

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 
 import mujoco
 import numpy as np
@@ -35,6 +34,7 @@ from veragmil_suite.environments.scoop import MAX_GRAINS_PER_DEFAULT
 from veragmil_suite.models.foods import DEFAULT_PHYSICS, FOODS, TRAINING_FOODS
 from veragmil_suite.models.scoop_task import GRAIN_SLEEP_TOLERANCE
 from veragmil_suite.utils import cli
+from veragmil_suite.utils.timing import per_call, stopwatch
 
 REAL_TIME_STEPS_PER_S = 20.0  # the default 20 Hz control rate
 # the speed issue's goals: at rest, asleep, 0.6x Lift; whole expert episodes of the slowest training food 1.5x (aim
@@ -55,12 +55,7 @@ def env_rate(env, steps: int, warmup: int = 1) -> float:
     """Env steps/s holding still, timed after ``warmup`` steps (the first pays one-off costs)."""
     env.reset()
     action = np.zeros(env.action_dim)
-    for _ in range(warmup):
-        env.step(action)
-    start = time.perf_counter()
-    for _ in range(steps):
-        env.step(action)
-    return steps / (time.perf_counter() - start)
+    return 1.0 / per_call(lambda: env.step(action), steps, warmup).wall_s
 
 
 def _bare_rate(env, steps: int) -> float:
@@ -72,11 +67,12 @@ def _bare_rate(env, steps: int) -> float:
     model, data = env.sim.model._model, env.sim.data._data
     arm_dofs = np.asarray(env.robots[0]._ref_joint_vel_indexes)
     substeps = int(round(env.control_timestep / env.model_timestep))
-    start = time.perf_counter()
-    for _ in range(steps):
+
+    def env_step_of_physics() -> None:
         data.qfrc_applied[arm_dofs] = data.qfrc_bias[arm_dofs]
         mujoco.mj_step(model, data, nstep=substeps)
-    return steps / (time.perf_counter() - start)
+
+    return 1.0 / per_call(env_step_of_physics, steps, warmup=0).wall_s
 
 
 def make_env(
@@ -109,11 +105,11 @@ def expert_episodes(food: str, robot: str, sleep_tolerance: float | None, episod
 
     def step(action):
         nonlocal pile_awake_steps, pile_awake_s
-        start = time.perf_counter()
-        out = env.step(action)
+        with stopwatch() as elapsed:
+            out = env.step(action)
         if env.sim.data._data.body_awake[env.grain_body_ids].all():
             pile_awake_steps += 1
-            pile_awake_s += time.perf_counter() - start
+            pile_awake_s += elapsed.wall_s
         return out
 
     timers = {**STEP_PARTS, "step": mujoco.mjtTimer.mjTIMER_STEP}
@@ -122,15 +118,9 @@ def expert_episodes(food: str, robot: str, sleep_tolerance: float | None, episod
         expert.reset(seed=seed)
         data = env.sim.data._data
         before = {name: data.timer[t].duration for name, t in timers.items()}
-        start = time.perf_counter()
-        end = run_until_done(
-            expert.agent,
-            step,
-            obs,
-            env.control_freq,
-            env.horizon,
-        )
-        seconds += time.perf_counter() - start
+        with stopwatch() as elapsed:
+            end = run_until_done(expert.agent, step, obs, env.control_freq, env.horizon)
+        seconds += elapsed.wall_s
         steps += end.steps
         successes += end.reason == "success"
         for name, t in timers.items():
