@@ -81,8 +81,8 @@ def timed(fn, n: int) -> float:
     return 1000 * per_call(fn, n).wall_s
 
 
-# ------------------------------------------------------------------------------------------------ 1. render, encode
 def bench_render() -> None:
+    """Section 1: the streamed camera rendered and JPEG-encoded, ms per frame."""
     env = make("ScoopGranular")
     model, data = env.sim.model._model, env.sim.data._data
     print("1. streamed camera: ScoopGranular 'overhead', 320x240, RGB + depth, osmesa (software)")
@@ -101,7 +101,6 @@ def bench_render() -> None:
     env.close()
 
 
-# ------------------------------------------------------------------------------------------------ 2. messages/s
 def _flood(url: str, n: int, out) -> None:
     """Child process: send n pose messages as fast as the socket takes them."""
     import aiohttp
@@ -122,6 +121,7 @@ def _flood(url: str, n: int, out) -> None:
 
 
 def bench_messages(n: int) -> None:
+    """Section 2: pose messages the device handles per second, sent as fast as the socket takes them."""
     env = make("Lift")
     device = VRDevice(env, server=VRServerOptions(port=0), verbose=False)
     try:
@@ -152,8 +152,8 @@ def bench_messages(n: int) -> None:
         env.close()
 
 
-# ------------------------------------------------------------------------------------------------ 3. latency
 def bench_latency(seconds: float) -> None:
+    """Section 3: a pose message's way from the client to the device's action, ms."""
     env = make("Lift")
     device = VRDevice(env, server=VRServerOptions(port=0), verbose=False)
     client = Client(device.url).connect()
@@ -198,7 +198,6 @@ def bench_latency(seconds: float) -> None:
         env.close()
 
 
-# ------------------------------------------------------------------------------------------------ 4. frames/s
 def bench_env_alone(env_name: str, control_freq: int, steps: int) -> float:
     """ms per env.step with a zero action and nothing else running in this process: the baseline."""
     env = make(env_name, control_freq)
@@ -209,6 +208,7 @@ def bench_env_alone(env_name: str, control_freq: int, steps: int) -> float:
 
 
 def bench_stream(env_name: str, control_freq: int, seconds: float, depth: bool = True) -> None:
+    """Section 4: frames per second streamed beside the control loop, and what streaming costs the env's step."""
     alone = bench_env_alone(env_name, control_freq, 40)
     env = make(env_name, control_freq)
     camera = "overhead" if env_name == "ScoopGranular" else "agentview"
@@ -248,7 +248,6 @@ def bench_stream(env_name: str, control_freq: int, seconds: float, depth: bool =
         env.close()
 
 
-# ------------------------------------------------------------------------------------------------ 5. hand to frame
 MOVE_M = 0.02  # the hand's step, along the operator's right
 MOVE_EVERY_S = (0.6, 0.9)  # drawn at random, so that moves fall at every phase of the control period
 SWITCH_S = 4.0  # each frame schedule in turn for this long
@@ -348,8 +347,9 @@ def _summary(values) -> str:
 
 
 def bench_hand_to_frame(trials: int, env_name: str = "ScoopGranular", physics: str | None = None) -> None:
-    """Both frame schedules in turn, SWITCH_S each, with one client throughout: a machine whose load changes
-    affects both alike. A move counts for the schedule in force from just before it to its frame."""
+    """Section 5: hand to frame. Both frame schedules in turn, SWITCH_S each, with one client throughout: a machine
+    whose load changes affects both alike. A move counts for the schedule in force from just before it to its
+    frame."""
     env = make(env_name, physics=physics)
     camera = "overhead" if env_name == "ScoopGranular" else "agentview"
     device = VRDevice(env, server=VRServerOptions(port=0), camera_name=camera, verbose=False)

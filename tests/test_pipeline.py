@@ -290,15 +290,15 @@ def test_a_killed_study_resumes_and_skips_every_finished_piece(tmp_path):
         assert [n.decode() for n in f["mask/first1"][:]] == ["demo_0"]
         assert sorted(n.decode() for n in f["mask/first2"][:]) == ["demo_0", "demo_1"]
 
-    # a third run finds everything done, and keeps the wall times of the runs that did the work
+    # asking for the last checkpoints only finds everything done: the same runs, the episodes journaled, and the wall
+    # times kept of the runs that did the work
     timings = json.loads((out / "timings.json").read_text())
-    third = _run("veragmil-study", *args)
-    assert third.returncode == 0 and "skipping 5 evaluation episodes" in third.stdout and "; 0 to run" in third.stdout
-    assert json.loads((out / "timings.json").read_text()) == timings
-    # asking for the last checkpoints only reuses the same runs
     last_only = _run("veragmil-study", *args[: args.index("--eval-steps")], "--episodes", "1")
     assert last_only.returncode == 0 and "skipping training expert_bc_2demos_10steps" in last_only.stdout
+    assert "skipping recording expert pasta" in last_only.stdout
     assert "skipping 3 evaluation episodes" in last_only.stdout  # operator and the two last checkpoints
+    assert "; 0 to run" in last_only.stdout
+    assert json.loads((out / "timings.json").read_text()) == timings
     # a second training seed trains one more run beside the first (kept: it is seed 1's) and reports the spread
     seeds = [*CHEAP_STUDY, "--output-dir", out, "--demos-per-food", "1", "--eval-foods", "pasta", "--episodes", "1"]
     two = _run("veragmil-study", *seeds, "--train-seeds", "1", "2", "--no-operators")
