@@ -14,7 +14,9 @@ Imports:
       defined only when that import fails, then the import is retried; otherwise nothing is defined.
 
 robosuite 1.5 environments (EnvRobosuite's methods are replaced, so every robomimic path uses them; observations
-and model XML come from veragmil_suite.learning.robomimic_obs, the conversion the dataset recorder uses too):
+and model XML come from veragmil_suite.learning.robomimic_obs, the conversion the dataset recorder uses too). Not a
+subclass of our own: robomimic 0.3.0 picks the class from a fixed switch on the env type (env_utils.get_env_class,
+no registry), and its users and scripts build ``EnvRobosuite(...)`` by name, which a subclass would leave broken:
     - ``env_name`` stored inside env_kwargs (robosuite 1.5's own collection scripts do) made environment creation
       from a dataset or checkpoint fail with a duplicate argument: it is dropped.
     - controller configs of robosuite <= 1.4 (one arm part, e.g. {"type": "OSC_POSE"}) are converted to 1.5's
