@@ -293,7 +293,7 @@ def test_a_killed_study_resumes_and_skips_every_finished_piece(tmp_path):
     # asking for the last checkpoints only finds everything done: the same runs, the episodes journaled, and the wall
     # times kept of the runs that did the work
     timings = json.loads((out / "timings.json").read_text())
-    last_only = _run("veragmil-study", *args[: args.index("--eval-steps")], "--episodes", "1")
+    last_only = _run("veragmil-study", *args[: args.index("--eval-steps")], "--eval-foods", "pasta", "--episodes", "1")
     assert last_only.returncode == 0 and "skipping training expert_bc_2demos_10steps" in last_only.stdout
     assert "skipping recording expert pasta" in last_only.stdout
     assert "skipping 3 evaluation episodes" in last_only.stdout  # operator and the two last checkpoints
