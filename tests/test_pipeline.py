@@ -196,7 +196,7 @@ def test_quickstart_end_to_end_records_trains_evaluates_and_prints_the_tables(tm
     """The README's main job, shrunk: one cheap food, one demo, a few gradient steps, one episode per agent."""
     out = tmp_path / "qs"
     args = ["--output-dir", out, "--train-foods", "pasta", "--eval-foods", "pasta", "peas", "--n-grains", "12"]
-    args += ["--demos-per-food", "1", "--epochs", "2", "--steps-per-epoch", "5", "--episodes", "1", "--horizon", "300"]
+    args += ["--demos-per-food", "1", "--epochs", "2", "--steps-per-epoch", "5", "--episodes", "1", "--horizon", "250"]
     result = _run("veragmil-quickstart", *args)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
     with h5py.File(out / "data" / "expert.hdf5") as f:
@@ -379,19 +379,19 @@ def test_a_stage_called_as_a_function_logs_its_output_and_fails_with_the_tail_of
 def test_a_shorter_recording_is_continued_to_the_demos_one_run_records(tmp_path):
     whole, grown = tmp_path / "whole.hdf5", tmp_path / "grown.hdf5"
     kwargs = dict(food="pasta", profile="expert", seed=5, n_grains=12, horizon=250)
-    assert record_food(whole, demos=3, **kwargs) > 0
+    assert record_food(whole, demos=2, **kwargs) > 0
     assert record_food(grown, demos=1, **kwargs) > 0
-    assert record_food(grown, demos=3, **kwargs) > 0  # continued from the seed after its last attempt
-    assert record_food(grown, demos=3, **kwargs) is None  # complete: skipped
+    assert record_food(grown, demos=2, **kwargs) > 0  # continued from the seed after its last attempt
+    assert record_food(grown, demos=2, **kwargs) is None  # complete: skipped
     with h5py.File(whole) as a, h5py.File(grown) as b:
         assert sorted(a["data"].keys()) == sorted(b["data"].keys())
         for name in a["data"]:
             assert a["data"][name].attrs["seed"] == b["data"][name].attrs["seed"]
             assert (a["data"][name]["states"][:] == b["data"][name]["states"][:]).all()
     with pytest.raises(StageError, match="recorded with other settings: n_grains 12 \\(asked: 10\\)"):
-        record_food(grown, demos=4, **dict(kwargs, n_grains=10))
+        record_food(grown, demos=3, **dict(kwargs, n_grains=10))
     with pytest.raises(StageError, match="physics 'calibrated' \\(asked: 'table1'\\)"):
-        record_food(grown, demos=4, **dict(kwargs, physics="table1"))
+        record_food(grown, demos=3, **dict(kwargs, physics="table1"))
 
 
 def test_a_study_records_on_its_physics(tmp_path):
