@@ -218,19 +218,34 @@ def _worker_attempt(context: tuple, seed: int):
 
 
 def parallel_attempts(
+    env,
     env_kwargs: dict,
     profile: str,
     first_seed: int,
     success_hold_s: float = SUCCESS_HOLD_S,
     processes: int = 1,
     ray: str | None = None,
-    piles: dict | None = None,
 ) -> Iterator[tuple]:
     """
-    Scripted attempts of ``profile`` in ``processes`` processes, or as Ray tasks (on the cluster at ``ray``) on the
-    driver's settled ``piles``, yielded in seed order like local_attempts (a few attempts run ahead; those not
-    needed are cancelled or dropped when the caller stops).
+    Scripted attempts of ``profile`` in ``processes`` processes, or as Ray tasks (on the cluster at ``ray``), yielded
+    in seed order like local_attempts (a few attempts run ahead; those not needed are cancelled or dropped when the
+    caller stops). ``env``, the driver's, has settled the piles and is closed here: Ray workers are handed its piles,
+    local workers read them from the disk cache.
     """
+    piles = env.settled_piles() if ray is not None else None
+    env.close()
+    return _attempts_in_workers(env_kwargs, profile, first_seed, success_hold_s, processes, ray, piles)
+
+
+def _attempts_in_workers(
+    env_kwargs: dict,
+    profile: str,
+    first_seed: int,
+    success_hold_s: float,
+    processes: int,
+    ray: str | None,
+    piles: dict | None,
+) -> Iterator[tuple]:
     with ray_session(ray) as address:
         on_ray = address is not None
         attempts = run_pieces(
@@ -318,11 +333,10 @@ def collect(
         raise ValueError(f"keep policy {keep_policy!r}; accepted: {', '.join(KEEP_POLICIES)}")
     outcome = CollectionOutcome(path=str(writer.path), requested=episodes)
     teleop = operator if isinstance(operator, TeleopOperator) else None
-    tried, discarded = 0, 0
+    n, discarded = 0, 0  # n: the attempt drawn, from 1
     try:
-        while outcome.kept < episodes and (max_attempts is None or tried < max_attempts):
-            tried += 1
-            n = tried
+        while outcome.kept < episodes and (max_attempts is None or n < max_attempts):
+            n += 1
             if teleop is not None:
                 teleop.show_progress(
                     f"episode {n} | kept {outcome.kept}/{episodes} | discarded {discarded} | {writer.path.name}"
@@ -397,14 +411,12 @@ def record_scripted(
     )
     with writer:
         # built here in every case: a bad setting is refused before anything is recorded; with workers it settles
-        # the piles (local workers read them from the disk cache, Ray workers are handed them)
+        # the piles for them
         env = robosuite.make("ScoopGranular", **env_kwargs, has_renderer=False, seed=first)
         try:
             if processes > 1 or ray is not None:
-                piles = env.settled_piles() if ray is not None else None
-                env.close()
+                attempts = parallel_attempts(env, env_kwargs, profile, first, success_hold_s, processes, ray)
                 env = None
-                attempts = parallel_attempts(env_kwargs, profile, first, success_hold_s, processes, ray, piles)
             else:
                 operator = ScriptedOperator(env, profile, first)
                 attempts = local_attempts(env, EpisodeRecorder(env), operator, first, success_hold_s)

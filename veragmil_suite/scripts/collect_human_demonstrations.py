@@ -325,8 +325,7 @@ def main(args: argparse.Namespace) -> int:
         raise UsageError(str(e)) from None
 
     # the environment is built here in every case: a bad setting is refused before anything is recorded (nothing is
-    # written before the first episode), and with workers it settles the piles: local workers read them from the
-    # disk cache, Ray workers are handed them
+    # written before the first episode), and with workers it settles the piles for them (parallel_attempts)
     operator = None
     cameras = args.camera or args.camera_names[:1] or ["overhead"]
     try:
@@ -345,11 +344,9 @@ def main(args: argparse.Namespace) -> int:
         os.makedirs(os.path.dirname(output), exist_ok=True)  # robosuite's layout: a new folder per run
     pace = FrameCap(args.max_fr) if args.max_fr is not None else None
     if args.processes > 1 or args.ray is not None:
-        piles = env.settled_piles() if args.ray is not None else None
-        env.close()
+        attempts = parallel_attempts(env, env_kwargs, args.profile, args.seed, args.success_hold, args.processes,
+                                     args.ray)  # fmt: skip
         env = None
-        attempts = parallel_attempts(env_kwargs, args.profile, args.seed, args.success_hold, args.processes,
-                                     args.ray, piles)  # fmt: skip
     else:
         try:
             operator = make_operator(args, env)

@@ -16,11 +16,6 @@ class Elapsed:
     wall_s: float = 0.0
     cpu_s: float = 0.0
 
-    def __iadd__(self, other: Elapsed) -> Elapsed:
-        self.wall_s += other.wall_s
-        self.cpu_s += other.cpu_s
-        return self
-
 
 @contextlib.contextmanager
 def stopwatch() -> Iterator[Elapsed]:
