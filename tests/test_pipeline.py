@@ -89,6 +89,32 @@ def test_no_operators_leaves_the_scripted_operators_out_of_the_study():
     assert without.own_agents() == ["expert BC object obs", "expert-dart BC object obs"]
 
 
+def test_every_setting_is_an_option_of_the_study_built_from_the_settings_alone():
+    """A new PipelineSettings field with its Option is a study option with no other file touched; what the
+    options do not give is the parser's defaults object."""
+    from dataclasses import fields
+
+    from veragmil_suite.scripts.study import build_parser, settings_from_args
+
+    parser = build_parser()
+    dests = {action.dest for action in parser._actions}
+    assert {f.name for f in fields(PipelineSettings)} <= dests
+    settings = settings_from_args(parser.parse_args(["--output-dir", "runs/x"]))
+    defaults = parser.get_default("pipeline_defaults")
+    for f in fields(PipelineSettings):
+        if f.name != "output_dir":
+            assert getattr(settings, f.name) == getattr(defaults, f.name), f.name
+    given = settings_from_args(parser.parse_args([
+        "--output-dir", "runs/x", "--robot", "XArm7", "--algo-epochs", "bc_rnn=40", "--algo-epochs", "bc=3",
+        "--agent", "careful=expert:careful", "--n-grains", "50", "--train-seeds", "1", "3", "--ray",
+    ]))  # fmt: skip
+    assert given.algo_epochs == {"bc_rnn": 40, "bc": 3} and given.agents == {"careful": "expert:careful"}
+    assert (given.n_grains, given.train_seeds, given.output_dir) == (50, [1, 3], "runs/x")
+    assert given.ray is not None
+    dated = settings_from_args(parser.parse_args([])).output_dir
+    assert dated.startswith(os.path.join("runs", "study", "")) and dated[-15:-7].isdigit()
+
+
 def test_training_seeds_name_their_runs_and_columns_and_the_default_seed_keeps_its_old_name(tmp_path):
     grid = dict(output_dir=str(tmp_path), algos=["bc", "bcq"], seed=0)
     one = PipelineSettings(**grid)

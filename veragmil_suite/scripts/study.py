@@ -21,16 +21,12 @@ the pieces run as Ray tasks, on this machine or spread over a cluster's nodes (d
 from __future__ import annotations
 
 import argparse
-import os
 import sys
-import time
 from dataclasses import fields
 
-from veragmil_suite.evaluation.agents import SPEC_HELP, parse_agent_argument
 from veragmil_suite.models.foods import TRAINING_FOODS, UNSEEN_FOODS
 from veragmil_suite.study.pipeline import run_pipeline
 from veragmil_suite.study.settings import PipelineSettings, StageError
-from veragmil_suite.utils import cli
 from veragmil_suite.utils.cli.handler import UsageError, command
 from veragmil_suite.utils.cli.parser import Parser
 from veragmil_suite.utils.distributed import add_ray_argument, check_ray_argument
@@ -40,138 +36,44 @@ INTERRUPTED = "interrupted; run the same command (same --output-dir) again to re
 
 
 def add_pipeline_arguments(p: Parser, defaults: PipelineSettings) -> None:
-    """The options study and quickstart share, with ``defaults`` shown in --help."""
-    p.add_argument(
-        "--output-dir",
-        type=cli.output_folder,
-        default=argparse.SUPPRESS,
-        help=f"where data, runs and tables go; an existing one is resumed (default: {defaults.output_dir}/<date-time>)",
-    )
-    p.set_defaults(output_base=defaults.output_dir, default_agents=defaults.agents)
-    p.add_argument("--profiles", type=cli.ListOf(cli.profile), default=defaults.profiles, help="operator profiles")
-    p.add_argument("--algos", type=cli.ListOf(cli.algo), default=defaults.algos, help="algorithms trained")
-    p.add_argument(
-        "--obs-sets",
-        type=cli.ListOf(cli.observation_set),
-        default=defaults.obs_sets,
-        help="train each model once per low-dim observation set, named in its column (veragmil_suite."
-        "observation_sets): object holds grain counts, no-load what a real robot could observe",
-    )
-    p.add_argument("--train-foods", type=cli.ListOf(cli.food), default=defaults.train_foods, help="foods recorded")
-    p.add_argument("--eval-foods", type=cli.ListOf(cli.food), default=defaults.eval_foods, help="foods evaluated")
-    p.add_argument(
-        "--demos-per-food",
-        type=cli.ListOf(cli.count),
-        default=defaults.demos_per_food,
-        help="the paper: 30; several values train one model each (a learning curve over data)",
-    )
-    p.add_argument("--epochs", type=cli.count, default=defaults.epochs, help="the configs' own: 2000")
-    p.add_argument(
-        "--steps-per-epoch", type=cli.count, default=defaults.steps_per_epoch, help="gradient steps per epoch"
-    )
-    p.add_argument(
-        "--algo-epochs",
-        action="append",
-        type=cli.KeyValue(cli.algo, cli.count, "ALGO=EPOCHS"),
-        metavar="ALGO=EPOCHS",
-        default=None,
-        help="this algorithm's own number of epochs instead of --epochs (repeat for more), e.g. bc_rnn=40: "
-        "BC-RNN costs 7x BC's time per gradient step; it is evaluated at its end and at the --eval-steps it reaches",
-    )
-    p.add_argument(
-        "--eval-steps",
-        type=cli.ListOf(cli.count),
-        default=None,
-        help="evaluate the checkpoints at these gradient steps (a learning curve; default: the last only)",
-    )
-    p.add_argument(
-        "--episodes", type=cli.count, default=defaults.episodes, help="evaluation episodes per food and model"
-    )
-    p.add_argument(
-        "--processes",
-        type=cli.count,
-        default=defaults.processes,
-        help="parallel recording and evaluation processes (with --ray, the least number of pieces in flight)",
-    )
-    p.add_argument("--horizon", type=cli.count, default=defaults.horizon, help="longest episode, control steps")
-    p.add_argument("--n-grains", type=cli.count, default=None, help="grains in the bowl (default: each food's own)")
-    p.add_argument(
-        "--physics",
-        type=cli.physics,
-        default=defaults.physics,
-        help="the grain models every stage records and evaluates on (veragmil_suite.models.foods.PHYSICS)",
-    )
-    p.add_argument("--seed", type=cli.seed, default=defaults.seed, help="first recording seed")
-    p.add_argument(
-        "--train-seeds",
-        type=cli.ListOf(cli.seed),
-        default=None,
-        metavar="SEED",
-        help="train each model once per seed (torch's), on the same data and scored on the same episodes; "
-        "eval/seeds.md gives each recipe's mean and range over them (default: --seed + 1 alone)",
-    )
-    p.add_argument(
-        "--robots",
-        aliases=["--robot"],
-        type=cli.robot,
-        default=defaults.robot,
-        help="the robot that records, and that the models and operators scoop with (G1FixedLowerBody: the G1, "
-        "with the humanoid extra)",
-    )
-    p.add_argument(
-        "--no-operators",
-        dest="score_demonstrators",
-        action="store_false",
-        help="do not score the scripted operators themselves (the Human column), e.g. when measure_expert has",
-    )
+    """The options study and quickstart share, one per PipelineSettings field that has an Option, with
+    ``defaults`` shown in --help."""
+    p.set_defaults(pipeline_defaults=defaults)
+    for f in fields(PipelineSettings):
+        option = f.metadata.get("option")
+        if option is None:
+            continue
+        default = getattr(defaults, f.name)
+        kwargs = {"type": option.kind, "action": option.action, "metavar": option.metavar, "dest": f.name}
+        if option.action == "store_false":
+            del kwargs["type"], kwargs["metavar"]
+        p.add_argument(
+            *(option.flags or ("--" + f.name.replace("_", "-"),)),
+            aliases=option.aliases,
+            default=argparse.SUPPRESS if option.parse else default,
+            help=option.help.replace("{default}", option.show(default)),
+            **{k: v for k, v in kwargs.items() if v is not None},
+        )
     p.add_argument(
         "--verbose",
         "-v",
         action="store_true",
         help="also show what each recording and training prints (logged beside its results either way)",
     )
-    p.add_argument(
-        "--agent",
-        action="append",
-        type=cli.agent,
-        metavar="[NAME=]SPEC",
-        default=argparse.SUPPRESS,
-        help=f"also evaluate this agent beside the run's own (repeat for more): SPEC is {SPEC_HELP} (default: "
-        + (", ".join(f"{name}={spec}" for name, spec in defaults.agents.items()) or "none")
-        + ")",
-    )
 
 
 def settings_from_args(args: argparse.Namespace) -> PipelineSettings:
-    """The settings the options give: every PipelineSettings field an option of the same name sets, then the ones
-    an option gives in another form (the output folder, --robots, --algo-epochs pairs, --agent texts, --ray)."""
-    values = {f.name: getattr(args, f.name) for f in fields(PipelineSettings) if hasattr(args, f.name)}
-    values.update(
-        output_dir=getattr(args, "output_dir", None) or os.path.join(args.output_base, time.strftime("%Y%m%d-%H%M%S")),
-        robot=args.robots,
-        algo_epochs=algo_epochs(args.algo_epochs),
-        agents=agent_columns(getattr(args, "agent", None), defaults=args.default_agents),
-        ray=getattr(args, "ray", None),
-    )
+    """The settings the options give: each field its option's value (through the option's ``parse``), the ones
+    without an option of their own (--ray) from an argument of the same name, the rest the parser's defaults."""
+    defaults = args.pipeline_defaults
+    values = {}
+    for f in fields(PipelineSettings):
+        option = f.metadata.get("option")
+        if option is not None and option.parse:
+            values[f.name] = option.parse(getattr(args, f.name, None), getattr(defaults, f.name))
+        else:
+            values[f.name] = getattr(args, f.name, getattr(defaults, f.name))
     return PipelineSettings(**values)
-
-
-def algo_epochs(pairs: list[tuple[str, int]] | None) -> dict[str, int]:
-    """``--algo-epochs`` values (cli.KeyValue pairs) as algorithm -> epochs, the last given for an algorithm."""
-    return dict(pairs or [])
-
-
-def agent_columns(texts: list[str] | None, defaults: dict[str, str]) -> dict[str, str]:
-    """``--agent`` values as name -> SPEC (``defaults`` when none is given); ValueError for a bad or repeated one."""
-    if texts is None:
-        return dict(defaults)
-    agents: dict[str, str] = {}
-    for text in texts:
-        name, spec = parse_agent_argument(text)
-        if name in agents:
-            raise ValueError(f"two agents are named {name!r}: give each a NAME= of its own")
-        agents[name] = spec
-    return agents
 
 
 def run(args: argparse.Namespace, prog: str) -> int:

@@ -4,10 +4,14 @@ sets, robot, workers, Ray), the algorithms' configs and the seeds' layout.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import os
+import time
+from collections.abc import Callable
+from dataclasses import MISSING, dataclass, field
+from typing import Any
 
 from veragmil_suite.devices.expert import get_profile
-from veragmil_suite.evaluation.agents import parse_spec
+from veragmil_suite.evaluation.agents import SPEC_HELP, parse_agent_argument, parse_spec
 from veragmil_suite.learning.algorithms import ALGORITHMS
 from veragmil_suite.learning.observation_sets import (
     DEFAULT_OBSERVATION_SET,
@@ -15,6 +19,7 @@ from veragmil_suite.learning.observation_sets import (
 )
 from veragmil_suite.models.foods import DEFAULT_PHYSICS, TRAINING_FOODS, UNSEEN_FOODS, check_physics, get_food
 from veragmil_suite.models.humanoid import check_robot
+from veragmil_suite.utils import cli
 
 # Seeds of recorded episodes and of evaluation episodes never meet: evaluation bowls are not training bowls.
 EVAL_SEED_OFFSET = 100_000
@@ -27,6 +32,44 @@ FOOD_SEED_STRIDE = 1000
 
 class StageError(RuntimeError):
     """A stage's child process failed; the message ends with the tail of its log."""
+
+
+@dataclass(frozen=True)
+class Option:
+    """How veragmil-study and veragmil-quickstart take a setting on their command line: their parser is built from
+    these (scripts/study.py), so a new setting is one field here with its Option.
+
+    ``flags`` defaults to ``--<the field's name, dashed>``; ``parse(given, default)`` turns what the option gave (None
+    when it was not given) into the field's value, and makes the option's own default the settings' (shown in
+    ``help`` as ``{default}``, through ``show``).
+    """
+
+    help: str
+    kind: Callable[[str], Any] | None = None
+    flags: tuple[str, ...] = ()
+    aliases: tuple[str, ...] = ()
+    action: str | None = None
+    metavar: str | None = None
+    parse: Callable[[Any, Any], Any] | None = None
+    show: Callable[[Any], str] = str
+
+
+def setting(option: Option, default: Any = MISSING, factory: Callable[[], Any] | Any = MISSING) -> Any:
+    """A PipelineSettings field with its command-line option."""
+    return field(default=default, default_factory=factory, metadata={"option": option})
+
+
+def agent_columns(texts: list[str] | None, defaults: dict[str, str]) -> dict[str, str]:
+    """``--agent`` values as name -> SPEC (``defaults`` when none is given); ValueError for a bad or repeated one."""
+    if texts is None:
+        return dict(defaults)
+    agents: dict[str, str] = {}
+    for text in texts:
+        name, spec = parse_agent_argument(text)
+        if name in agents:
+            raise ValueError(f"two agents are named {name!r}: give each a NAME= of its own")
+        agents[name] = spec
+    return agents
 
 
 @dataclass
@@ -47,28 +90,116 @@ class PipelineSettings:
     data; every model's column names its set.
     """
 
-    output_dir: str
-    profiles: list[str] = field(default_factory=lambda: ["expert"])
-    algos: list[str] = field(default_factory=lambda: ["bc"])
-    train_foods: list[str] = field(default_factory=lambda: list(TRAINING_FOODS))
-    eval_foods: list[str] = field(default_factory=lambda: list(TRAINING_FOODS + UNSEEN_FOODS))
-    demos_per_food: list[int] = field(default_factory=lambda: [2])
-    epochs: int = 20
-    steps_per_epoch: int = 100
-    eval_steps: list[int] | None = None
-    algo_epochs: dict[str, int] = field(default_factory=dict)
-    episodes: int = 3
-    processes: int = 2
-    seed: int = 0
-    horizon: int = 400
-    n_grains: int | None = None
-    physics: str = DEFAULT_PHYSICS  # the grains every stage records and evaluates on (veragmil_suite.models.foods)
-    robot: str = "XArm7"  # records, trains and evaluates with this robot (veragmil_suite.models.humanoid: the G1)
-    score_demonstrators: bool = True
-    train_seeds: list[int] | None = None
-    obs_sets: list[str] = field(default_factory=lambda: [DEFAULT_OBSERVATION_SET])
-    agents: dict[str, str] = field(default_factory=dict)
-    ray: str | None = None  # None: local processes; else a Ray cluster's address (distributed.THIS_MACHINE: here)
+    output_dir: str = setting(
+        Option(
+            "where data, runs and tables go; an existing one is resumed (default: {default}/<date-time>)",
+            cli.output_folder,
+            parse=lambda given, default: given or os.path.join(default, time.strftime("%Y%m%d-%H%M%S")),
+        )
+    )
+    profiles: list[str] = setting(Option("operator profiles", cli.ListOf(cli.profile)), factory=lambda: ["expert"])
+    algos: list[str] = setting(Option("algorithms trained", cli.ListOf(cli.algo)), factory=lambda: ["bc"])
+    train_foods: list[str] = setting(
+        Option("foods recorded", cli.ListOf(cli.food)), factory=lambda: list(TRAINING_FOODS)
+    )
+    eval_foods: list[str] = setting(
+        Option("foods evaluated", cli.ListOf(cli.food)), factory=lambda: list(TRAINING_FOODS + UNSEEN_FOODS)
+    )
+    demos_per_food: list[int] = setting(
+        Option(
+            "the paper: 30; several values train one model each (a learning curve over data)", cli.ListOf(cli.count)
+        ),
+        factory=lambda: [2],
+    )
+    epochs: int = setting(Option("the configs' own: 2000", cli.count), 20)
+    steps_per_epoch: int = setting(Option("gradient steps per epoch", cli.count), 100)
+    eval_steps: list[int] | None = setting(
+        Option(
+            "evaluate the checkpoints at these gradient steps (a learning curve; default: the last only)",
+            cli.ListOf(cli.count),
+        ),
+        None,
+    )
+    algo_epochs: dict[str, int] = setting(
+        Option(
+            "this algorithm's own number of epochs instead of --epochs (repeat for more), e.g. bc_rnn=40: BC-RNN "
+            "costs 7x BC's time per gradient step; it is evaluated at its end and at the --eval-steps it reaches",
+            cli.KeyValue(cli.algo, cli.count, "ALGO=EPOCHS"),
+            action="append",
+            metavar="ALGO=EPOCHS",
+            parse=lambda pairs, default: dict(pairs) if pairs else dict(default),
+        ),
+        factory=dict,
+    )
+    episodes: int = setting(Option("evaluation episodes per food and model", cli.count), 3)
+    processes: int = setting(
+        Option(
+            "parallel recording and evaluation processes (with --ray, the least number of pieces in flight)",
+            cli.count,
+        ),
+        2,
+    )
+    seed: int = setting(Option("first recording seed", cli.seed), 0)
+    horizon: int = setting(Option("longest episode, control steps", cli.count), 400)
+    n_grains: int | None = setting(Option("grains in the bowl (default: each food's own)", cli.count), None)
+    physics: str = setting(
+        Option(
+            "the grain models every stage records and evaluates on (veragmil_suite.models.foods.PHYSICS)",
+            cli.physics,
+        ),
+        DEFAULT_PHYSICS,
+    )
+    robot: str = setting(
+        Option(
+            "the robot that records, and that the models and operators scoop with (G1FixedLowerBody: the G1, "
+            "with the humanoid extra)",
+            cli.robot,
+            flags=("--robots",),
+            aliases=("--robot",),
+        ),
+        "XArm7",
+    )
+    score_demonstrators: bool = setting(
+        Option(
+            "do not score the scripted operators themselves (the Human column), e.g. when measure_expert has",
+            flags=("--no-operators",),
+            action="store_false",
+        ),
+        True,
+    )
+    train_seeds: list[int] | None = setting(
+        Option(
+            "train each model once per seed (torch's), on the same data and scored on the same episodes; "
+            "eval/seeds.md gives each recipe's mean and range over them (default: --seed + 1 alone)",
+            cli.ListOf(cli.seed),
+            metavar="SEED",
+        ),
+        None,
+    )
+    obs_sets: list[str] = setting(
+        Option(
+            "train each model once per low-dim observation set, named in its column (veragmil_suite.learning."
+            "observation_sets): object holds grain counts, no-load what a real robot could observe",
+            cli.ListOf(cli.observation_set),
+        ),
+        factory=lambda: [DEFAULT_OBSERVATION_SET],
+    )
+    agents: dict[str, str] = setting(
+        Option(
+            f"also evaluate this agent beside the run's own (repeat for more): SPEC is {SPEC_HELP} (default: "
+            "{default})",
+            cli.agent,
+            flags=("--agent",),
+            action="append",
+            metavar="[NAME=]SPEC",
+            parse=lambda texts, default: agent_columns(texts, default),
+            show=lambda agents: ", ".join(f"{name}={spec}" for name, spec in agents.items()) or "none",
+        ),
+        factory=dict,
+    )
+    # None: local processes; else a Ray cluster's address (distributed.THIS_MACHINE: here). Its option is
+    # distributed.add_ray_argument's, shared with the programs whose pieces run as Ray tasks.
+    ray: str | None = None
 
     def __post_init__(self):
         for food in [*self.train_foods, *self.eval_foods]:

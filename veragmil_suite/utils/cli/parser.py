@@ -20,9 +20,10 @@ class HelpFormatter(argparse.RawDescriptionHelpFormatter):
 
     def _get_help_string(self, action: argparse.Action) -> str:
         help = action.help or ""
-        if "%(default)" in help or "default" in help or action.default in (None, False, argparse.SUPPRESS, []):
-            return help
         default = action.default
+        switch = isinstance(action, (argparse._StoreTrueAction, argparse._StoreFalseAction))
+        if "default" in help or switch or default is None or default is argparse.SUPPRESS or default == []:
+            return help
         shown = " ".join(map(str, default)) if isinstance(default, (list, tuple)) else str(default)
         shown = shown.replace("%", "%%")
         return f"{help} (default: {shown})".strip()
