@@ -396,8 +396,13 @@ def test_a_stage_called_as_a_function_logs_its_output_and_fails_with_the_tail_of
     log = tmp_path / "stage.log"
     lines = ["  saved as demo_0 (1/2)", "  saved as demo_1 (2/2)"]
     bar = LogProgress(2, RECORDING_PROGRESS, "stage", "demo")
-    assert run_logged_call(say_then, dict(lines=lines, c_line="from C"), log, "stage", progress=bar) > 0
-    assert log.read_text().splitlines() == [*lines, "from C"]
+    before = dict(os.environ)
+    call = dict(lines=lines, c_line="from C", variables=("PYNPUT_BACKEND",))
+    assert run_logged_call(say_then, call, log, "stage", progress=bar) > 0
+    # the child's environment has pynput's dummy backend; this process's is left as it was
+    backend = before.get("PYNPUT_BACKEND", "dummy")
+    assert log.read_text().splitlines() == [*lines, f"PYNPUT_BACKEND={backend}", "from C"]
+    assert dict(os.environ) == before
     with pytest.raises(StageError, match=r"(?s)failing stage failed \(exit 1\); log .*stage.log:.*before.*it broke"):
         run_logged_call(say_then, dict(lines=["before"], error="it broke"), log, "failing stage")
 

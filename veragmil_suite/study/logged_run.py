@@ -103,15 +103,19 @@ def child_environ(extra: dict[str, str] | None = None) -> dict[str, str]:
 
 @contextlib.contextmanager
 def _environ(env: dict[str, str]) -> Iterator[None]:
-    """This process's environment replaced by ``env`` for the block (a spawned child inherits it at start)."""
-    saved = dict(os.environ)
-    os.environ.clear()
-    os.environ.update(env)
+    """This process's environment holding ``env``'s values for the block (a spawned child inherits it at start);
+    only the variables ``env`` changes or adds are touched, and put back after."""
+    changed = {key: value for key, value in env.items() if os.environ.get(key) != value}
+    saved = {key: os.environ.get(key) for key in changed}
+    os.environ.update(changed)
     try:
         yield
     finally:
-        os.environ.clear()
-        os.environ.update(saved)
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
 
 
 def _logged_call(function: Callable[..., object], kwargs: dict, log_path: str) -> None:
