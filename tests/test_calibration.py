@@ -10,9 +10,10 @@ import veragmil_suite  # noqa: F401
 from veragmil_suite.calibration.benchmark import QUICK_TUBE_SCALE, grain_dims_mm, grain_mass_mg, main
 from veragmil_suite.calibration.lifting_cylinder import heap_angles, lifting_cylinder
 from veragmil_suite.calibration.slope import slope_travel_m
-from veragmil_suite.calibration.spoonful import dish_volume_m3
+from veragmil_suite.calibration.spoonful import dish_volume_m3, level_spoonful_g
 from veragmil_suite.models.dish import DishShape
 from veragmil_suite.models.foods import FOODS, PHYSICS, GrainModel, check_physics
+from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
 
 # Heap angle (degrees) the benchmark's quick lifting-cylinder test of a calibrated food must exceed: Table I's grains
 # measure 4-8 degrees there, the calibrated ones 15-18 (results/calibration/quick.txt); the published angles are
@@ -143,6 +144,16 @@ def test_dish_volume_of_a_cylinder():
     shape = DishShape(rim_semi_axes=(0.02, 0.01), floor_semi_axes=(0.02, 0.01), depth=0.01, wall_half_thickness=0.001,
                       floor_half_thickness=0.001)  # fmt: skip
     assert dish_volume_m3(shape) == pytest.approx(math.pi * 0.02 * 0.01 * 0.01)
+
+
+@pytest.mark.parametrize("food", ["rice", "barley"])
+def test_a_level_spoonful_packs_no_denser_than_the_poured_food(food):
+    """Only grains in the spoon's bowl count: the ones poured over its side onto the table under it once made rice's
+    spoonful pack to 0.84 and barley's to 0.74, against 0.66 and 0.55 poured in the tube."""
+    grams, grains = level_spoonful_g(FOODS[food], "calibrated")
+    grain = FOODS[food].grain("calibrated")
+    packing = grains * grain.piece_volume_m3() / dish_volume_m3(SPOON_SHAPE)
+    assert grains > 0 and 0.3 < packing < 0.70, (grams, grains, packing)
 
 
 def test_benchmark_quick_writes_its_table_and_json(tmp_path, capsys):

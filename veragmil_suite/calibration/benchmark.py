@@ -151,7 +151,8 @@ def format_table(rows: list[dict]) -> str:
         return f"{fmt.format(check['sim'])} [{ref_text}] {mark}"
 
     header = (
-        f"{'food':<10} {'physics':<10} {'repose deg (fit | h/b)':<30} {'bulk g/cm3':<24} {'packing':>7} "
+        f"{'food':<10} {'physics':<10} {'repose deg (fit | h/b)':<30} {'creep mm/s':>10} {'bulk g/cm3':<24} "
+        f"{'packing':>7} "
         f"{'grain mg':<24} {'spoonful g':<22} {'expert g':>9}"
     )
     lines = [header, "-" * len(header)]
@@ -162,7 +163,8 @@ def format_table(rows: list[dict]) -> str:
         expert_text = f"{np.mean(expert['spoon_g']):.2f}" if expert else "-"
         lines.append(
             f"{r['food']:<10} {r['physics']:<10} {cell(c['angle_of_repose_deg'], '{:.1f}') + f' | {hb:.1f}':<30} "
-            f"{cell(c['bulk_density_g_cm3'], '{:.2f}'):<24} {r['cylinder']['packing_fraction']:>7.2f} "
+            f"{r['cylinder']['heap_creep_mm_s']:>10.2f} {cell(c['bulk_density_g_cm3'], '{:.2f}'):<24} "
+            f"{r['cylinder']['packing_fraction']:>7.2f} "
             f"{cell(c['grain_mass_mg'], '{:.0f}'):<24} {cell(c['spoonful_g'], '{:.1f}'):<22} {expert_text:>9}"
         )
     return "\n".join(lines)

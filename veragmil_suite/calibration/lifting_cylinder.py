@@ -6,6 +6,9 @@ only the container differs. The fill before lifting also gives the poured pile's
 
 Angles are measured two ways on the heap's surface profile (the highest grain top in rings about the axis): the
 height over the base radius, and a least-squares slope of the profile's flank (between 20% and 85% of the height).
+The heap is measured when every grain has slowed under the rest speed; it is then watched a while longer, and the
+rate at which its top sinks is its creep (MuJoCo's soft friction lets a loaded contact slip slowly: a heap that
+creeps keeps flattening while no grain is fast).
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ from veragmil_suite.models.foods import FoodSpec
 from veragmil_suite.models.grains import GrainPile
 
 LIFT_SPEED_M_S = 0.02
+CREEP_WATCH_S = 1.0  # how long a heap at rest is watched for creep
 TUBE_STAVES = 24
 STAVE_HALF_THICKNESS_M = 0.005
 
@@ -41,6 +45,7 @@ class CylinderResult:
     heap_radius_m: float
     angle_height_base_deg: float
     angle_slope_fit_deg: float
+    heap_creep_mm_s: float  # how fast the heap's top sank over CREEP_WATCH_S after it came to rest
     settled: bool
     escaped_fast: int  # grains seen faster than EJECTED_SPEED_M_S: a solver that throws grains
     sim_time_s: float
@@ -130,9 +135,12 @@ def lifting_cylinder(
         mujoco.mj_step(model, data)
     data.mocap_pos[0, 2] = 5.0  # out of the way
     rest_heap, fast_heap = run_until_rest(model, data, ids, max_settle_s)
-    height, base, angle_hb, angle_fit = heap_angles(
-        data.xpos[ids], half_thickness, ring_width=2 * float(pile.radii.mean())
-    )
+    ring = 2 * float(pile.radii.mean())
+    height, base, angle_hb, angle_fit = heap_angles(data.xpos[ids], half_thickness, ring_width=ring)
+    watch_from = data.time
+    while data.time - watch_from < CREEP_WATCH_S:
+        mujoco.mj_step(model, data, nstep=24)
+    height_after = heap_angles(data.xpos[ids], half_thickness, ring_width=ring)[0]
     return CylinderResult(
         n_grains=n,
         grain_mass_mg=float(mass.mean() * 1e6),
@@ -143,6 +151,7 @@ def lifting_cylinder(
         heap_radius_m=base,
         angle_height_base_deg=angle_hb,
         angle_slope_fit_deg=angle_fit,
+        heap_creep_mm_s=(height - height_after) * 1000.0 / (data.time - watch_from),
         settled=rest_fill and rest_heap,
         escaped_fast=max(fast_fill, fast_heap),
         sim_time_s=float(data.time),

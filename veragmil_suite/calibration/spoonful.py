@@ -2,6 +2,9 @@
 
 The real value it answers to is the spoon's volume times the food's measured bulk density; the simulated one counts
 the grains the spoon really holds (grains the size of the spoon's depth pack worse than in bulk, as real ones do).
+Striking off is done as by hand: a straight blade drawn across the rim, its edge on the rim's plane, sweeps away every
+grain that stands above it. The spoonful is the grains then in the spoon's bowl with their centre under the rim
+(DishShape.holds); grains poured over the side that came to rest on the table under the spoon are not in it.
 """
 
 from __future__ import annotations
@@ -21,6 +24,8 @@ from veragmil_suite.models.grains import GrainPile
 from veragmil_suite.models.spoon_gripper import SPOON_SHAPE, spoon_contact
 
 RIM_HEIGHT_M = 0.05  # the spoon's rim plane above the table
+BLADE_SPEED_M_S = 0.05  # the strike-off blade's sweep across the rim
+BLADE_HALF_SIZE_M = (0.002, 0.04, 0.015)  # thickness, length along the rim's minor axis, height (all halves)
 
 
 def dish_volume_m3(shape: DishShape) -> float:
@@ -48,6 +53,12 @@ def level_spoonful_g(
         geom.set("friction", array_to_string((SPOON_SURFACE.friction, 0.005, 0.0001)))
         for key, value in {**contact_groups.SHELL, **spoon_contact(physics)}.items():
             geom.set(key, str(value))
+    t, w, h = BLADE_HALF_SIZE_M
+    blade_start_x = -(SPOON_SHAPE.rim_semi_axes[0] + 2 * t + 2 * grain.size_range_m[1])
+    blade = ET.SubElement(world, "body", name="blade", mocap="true", pos=f"{blade_start_x} 0 {RIM_HEIGHT_M + h}")
+    ET.SubElement(blade, "geom", name="blade", type="box", size=f"{t} {w} {h}", friction="0.01 0 0", **{
+        key: str(value) for key, value in contact_groups.SHELL.items()
+    })  # fmt: skip
     for body in pile.bodies():
         world.append(body)
     model = mujoco.MjModel.from_xml_string(ET.tostring(root, encoding="unicode"))
@@ -55,9 +66,13 @@ def level_spoonful_g(
     adr = np.array([model.joint(j).qposadr[0] for j in pile.joint_names])
     rim = np.array([0.0, 0.0, RIM_HEIGHT_M])
     data.qpos[adr[:, None] + np.arange(7)] = pile.lattice_qpos(SPOON_SHAPE, rim_center=rim)
-    ids = np.array([model.body(b).id for b in pile.body_names])
+    ids = np.array([model.body(name).id for name in pile.body_names])
     run_until_rest(model, data, ids, max_settle_s, min_s=0.5)
-    pos = data.xpos[ids]
-    a, b = SPOON_SHAPE.rim_semi_axes
-    held = ((pos[:, 0] / a) ** 2 + (pos[:, 1] / b) ** 2 <= 1.0) & (pos[:, 2] <= RIM_HEIGHT_M)
+    while data.mocap_pos[0, 0] < -blade_start_x:
+        data.mocap_pos[0, 0] += BLADE_SPEED_M_S * model.opt.timestep
+        mujoco.mj_step(model, data)
+    data.mocap_pos[0, 2] = 5.0  # out of the way
+    run_until_rest(model, data, ids, max_settle_s)
+    # in the spoon's bowl, centre under the rim: not a grain that fell beside it, nor one under it on the table
+    held = SPOON_SHAPE.holds(data.xpos[ids] - rim, margin=float(pile.radii.max()))
     return float(model.body_mass[ids][held].sum() * 1000.0), int(held.sum())

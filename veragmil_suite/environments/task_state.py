@@ -113,13 +113,8 @@ class TaskStateMixin:
         spoon_pos = data.site_xpos[self.spoon_site_id]
         spoon_rot = data.site_xmat[self.spoon_site_id].reshape(3, 3)
         local = (pos - spoon_pos) @ spoon_rot
-        a, b = SPOON_SHAPE.rim_semi_axes
         margin = self.grain_radius_max
-        in_spoon = (
-            ((local[:, 0] / (a + margin)) ** 2 + (local[:, 1] / (b + margin)) ** 2 <= 1.0)
-            & (local[:, 2] >= -SPOON_SHAPE.depth - margin)
-            & (local[:, 2] <= 3 * margin)
-        )
+        in_spoon = SPOON_SHAPE.holds(local, margin=margin, above=3 * margin)
         spilled = ~in_bowl & ~in_spoon
         vol = self.grain_volumes_m3
         spoon_volume = float(vol[in_spoon].sum())

@@ -34,6 +34,16 @@ class DishShape:
     n_walls: int = 16
     wall_overlap: float = 1.15
 
+    def holds(self, local: np.ndarray, margin: float = 0.0, above: float = 0.0) -> np.ndarray:
+        """Which points (N x 3, in the dish frame) lie in the dish: inside the rim ellipse grown by ``margin``, no
+        lower than ``margin`` under the floor's top and no higher than ``above`` over the rim plane."""
+        a, b = self.rim_semi_axes
+        return (
+            ((local[:, 0] / (a + margin)) ** 2 + (local[:, 1] / (b + margin)) ** 2 <= 1.0)
+            & (local[:, 2] >= -self.depth - margin)
+            & (local[:, 2] <= above)
+        )
+
     def geoms(self) -> list[dict]:
         """Geoms of the shell: dicts with name, type, pos, quat (w, x, y, z), size."""
         a, b = self.rim_semi_axes

@@ -6,9 +6,9 @@ be made before that; this module imports only the standard library.
 
 Importing it as ``veragmil_suite.utils.rendering`` first runs the package's ``__init__``, which calls
 ``use_headless_rendering()`` when there is no display and then imports robosuite. A program that wants headless
-rendering whatever the display, before anything imports robosuite, runs this file by its path instead
-(``runpy.run_path``, as benchmarks/bench_eval.py, bench_training.py and bench_vr.py do); ``vr_stream`` sets it in the
-environment of its renderer process, which imports MuJoCo without this package.
+rendering whatever the display sets ``MUJOCO_GL`` and ``PYOPENGL_PLATFORM`` to ``osmesa`` before it imports the
+package (as the benchmarks in benchmarks/ do); ``vr_stream`` sets them in the environment of its renderer process, which
+imports MuJoCo without this package.
 """
 
 from __future__ import annotations
