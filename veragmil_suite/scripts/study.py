@@ -45,8 +45,6 @@ def add_pipeline_arguments(p: Parser, defaults: PipelineSettings) -> None:
             continue
         default = getattr(defaults, f.name)
         kwargs = {"type": option.kind, "action": option.action, "metavar": option.metavar, "dest": f.name}
-        if option.action == "store_false":
-            del kwargs["type"], kwargs["metavar"]
         p.add_argument(
             *(option.flags or ("--" + f.name.replace("_", "-"),)),
             aliases=option.aliases,
