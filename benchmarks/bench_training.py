@@ -12,6 +12,7 @@ jobs load the machine.
     python benchmarks/bench_training.py                       # bc, bc_rnn, bcq, bc_image, diffusion_policy
     python benchmarks/bench_training.py --algos bc_rnn_image --image-steps 2
     python benchmarks/bench_training.py --algos diffusion_policy --diffusion-steps 5 --threads 1 2
+    python benchmarks/bench_training.py --device cuda --steps 100 --image-steps 30 --diffusion-steps 30
 """
 
 from __future__ import annotations
@@ -30,15 +31,16 @@ ROOT = Path(__file__).resolve().parents[1]
 EPOCH_PARTS = ("Data_Loading", "Process_Batch", "Train_Batch", "Log_Info")
 CONFIG_DIR = ROOT / "configs" / "json"
 
-# OSMesa whatever the display (veragmil_suite.utils.rendering's forced choice), set before robosuite is imported
-os.environ["MUJOCO_GL"] = os.environ["PYOPENGL_PLATFORM"] = "osmesa"
+# OSMesa unless MUJOCO_GL names another (EGL on a GPU machine), set before robosuite is imported
+os.environ.setdefault("MUJOCO_GL", "osmesa")
+os.environ.setdefault("PYOPENGL_PLATFORM", os.environ["MUJOCO_GL"])
 os.environ.setdefault("PYNPUT_BACKEND", "dummy")
 
 from veragmil_suite.utils.timing import stopwatch  # noqa: E402  (the package imports robosuite: after MUJOCO_GL)
 
 
-def bench_algo(name: str, dataset: str, steps: int) -> dict:
-    """Times ``steps`` gradient steps of config ``name`` on ``dataset`` (after 2 warm-up steps)."""
+def bench_algo(name: str, dataset: str, steps: int, device: str = "cpu") -> dict:
+    """Times ``steps`` gradient steps of config ``name`` on ``dataset`` (after 2 warm-up steps) on torch ``device``."""
     import torch
     from robomimic.algo import algo_factory
     from robomimic.config import config_factory
@@ -60,13 +62,16 @@ def bench_algo(name: str, dataset: str, steps: int) -> dict:
         config=config,
         obs_key_shapes=shape_meta["all_shapes"],
         ac_dim=shape_meta["ac_dim"],
-        device=torch.device("cpu"),
+        device=torch.device(device),
     )
     trainset, _ = train_utils.load_data_for_training(config, obs_keys=shape_meta["all_obs_keys"])
     loader = DataLoader(trainset, batch_size=config.train.batch_size, shuffle=True, drop_last=True)
     train_utils.run_epoch(model=model, data_loader=loader, epoch=1, num_steps=2)
+    sync = torch.cuda.synchronize if device.startswith("cuda") else lambda: None
+    sync()
     with stopwatch() as timed:
         log = train_utils.run_epoch(model=model, data_loader=loader, epoch=1, num_steps=steps)
+        sync()
     elapsed, cpu = timed.wall_s, timed.cpu_s
     # a sample's steps: the sequence and the frames stacked before it (Diffusion Policy's observation history)
     batch, seq = config.train.batch_size, config.train.frame_stack - 1 + config.train.seq_length
@@ -101,6 +106,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--threads", type=int, nargs="+", default=[1, 2], help="torch thread counts (robomimic's train.py uses 2)"
     )
+    parser.add_argument("--device", default="cpu", help="torch device the networks train on (cpu, cuda)")
     args = parser.parse_args(argv)
 
     from veragmil_suite.learning import robomimic_compat
@@ -126,11 +132,14 @@ def main(argv: list[str] | None = None) -> None:
         steps = args.diffusion_steps if name.startswith("diffusion_policy") else steps
         for threads in args.threads:
             torch.set_num_threads(threads)
-            rows.append(dict(bench_algo(name, dataset, steps), threads=threads))
-            print(f"{name}, {threads} threads: {rows[-1]['samples_per_s']:.0f} samples/s", flush=True)
+            rows.append(dict(bench_algo(name, dataset, steps, args.device), threads=threads))
+            r = rows[-1]
+            rate = f"{r['steps_per_s']:.2f} steps/s, {r['samples_per_s']:.0f} samples/s"
+            print(f"{name}, {threads} threads: {rate}", flush=True)
 
     print(
-        f"\ntraining throughput, CPU ({os.cpu_count()} cores, load average {load_before:.1f} -> "
+        f"\ntraining throughput, {_device_name(args.device)} ({os.cpu_count()} cores, "
+        f"load average {load_before:.1f} -> "
         f"{os.getloadavg()[0]:.1f}), robomimic {_version('robomimic')}"
     )
     parts = " | ".join(f"% {p.lower().replace('_', ' ')}" for p in EPOCH_PARTS)
@@ -147,10 +156,21 @@ def main(argv: list[str] | None = None) -> None:
         )
 
 
-def _version(package: str) -> str:
-    from importlib.metadata import version
+def _device_name(device: str) -> str:
+    """The device the networks trained on, as a reader names it."""
+    import torch
 
-    return version(package)
+    return torch.cuda.get_device_name(torch.device(device)) if device.startswith("cuda") else "CPU"
+
+
+def _version(package: str) -> str:
+    """The installed version; a package put on the path without metadata (a copied folder) gives its __version__."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version(package)
+    except PackageNotFoundError:
+        return getattr(__import__(package), "__version__", "unknown")
 
 
 if __name__ == "__main__":
