@@ -9,9 +9,10 @@ spoon and the grains spilled) and, with ``use_food_params_obs``, ``food_params``
 restitution and density); robosuite concatenates them, in that order, into ``object``. Grain counts and the food's
 physical parameters are privileged: no real robot observes them.
 
-- ``object``: the low-dim configs' keys, the end-effector pose and ``object``, grain counts included.
-- ``no-load``: what a real robot could have: its end-effector pose (proprioception), the desired pose and the bowl's
-  position (a camera finds the bowl) and the spoon's offset from the desired position (the same two combined).
+- ``no-load`` (the low-dim configs' keys): what a real robot could have: its end-effector pose (proprioception), the
+  desired pose and the bowl's position (a camera finds the bowl) and the spoon's offset from the desired position
+  (the same two combined).
+- ``object``: the end-effector pose and ``object``, grain counts included.
 """
 
 from __future__ import annotations
@@ -25,8 +26,11 @@ OBSERVATION_SETS: dict[str, tuple[str, ...]] = {
     "object": ("robot0_eef_pos", "robot0_eef_quat", "object"),
     "no-load": ("robot0_eef_pos", "robot0_eef_quat", "desired_pose", "bowl_pos", "spoon_to_desired_pos"),
 }
-# the set of the low-dim configs in configs/json (tests/test_configs.py holds them to it)
-DEFAULT_OBSERVATION_SET = "object"
+# the set of the low-dim configs in configs/json (tests/test_configs.py holds them to it): BC scored as well without
+# grain counts as with them (results/grid_calibrated_expert/)
+DEFAULT_OBSERVATION_SET = "no-load"
+# the set every training run had before sets had names: its runs' folders carry no suffix, so those studies resume
+UNNAMED_RUNS_OBSERVATION_SET = "object"
 
 
 def check_observation_set(name: str) -> str:

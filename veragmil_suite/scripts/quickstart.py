@@ -18,10 +18,10 @@ from veragmil_suite.utils.asset_paths import pretrained_checkpoint
 from veragmil_suite.utils.cli.handler import command
 from veragmil_suite.utils.cli.parser import Parser
 
-# BC trained by veragmil-study on 30 expert demos per training food for 50k gradient steps, on the calibrated physics
-# (models/checkpoints)
-PRETRAINED = "bc_expert_30demos_50k.pth"
-PRETRAINED_NAME = "pretrained BC 50k"
+# BC trained by veragmil-study on 30 expert demos per training food for 50k gradient steps, with the configs'
+# observations (no grain counts), on the calibrated physics (models/checkpoints)
+PRETRAINED = "bc_no-load_expert_30demos_50k.pth"
+PRETRAINED_NAME = "pretrained BC no-load obs 50k"
 
 
 def build_parser() -> Parser:

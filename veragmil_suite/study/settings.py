@@ -15,6 +15,7 @@ from veragmil_suite.evaluation.agents import SPEC_HELP, parse_agent_argument, pa
 from veragmil_suite.learning.algorithms import ALGORITHMS
 from veragmil_suite.learning.observation_sets import (
     DEFAULT_OBSERVATION_SET,
+    UNNAMED_RUNS_OBSERVATION_SET,
     check_observation_set,
 )
 from veragmil_suite.models.foods import DEFAULT_PHYSICS, TRAINING_FOODS, UNSEEN_FOODS, check_physics, get_food
@@ -292,10 +293,10 @@ class PipelineSettings:
     def run_name(
         self, profile: str, algo: str, demos_per_food: int, train_seed: int, obs_set: str = DEFAULT_OBSERVATION_SET
     ) -> str:
-        """A training run's folder; the default seed's and observation set's have no suffix, so studies from before
+        """A training run's folder; the default seed's and the ``object`` set's have no suffix, so studies from before
         seeds and observation sets resume."""
         name = f"{profile}_{algo}_{demos_per_food}demos_{self.total_steps_of(algo)}steps"
-        name += f"_obs-{obs_set}" if obs_set != DEFAULT_OBSERVATION_SET else ""
+        name += f"_obs-{obs_set}" if obs_set != UNNAMED_RUNS_OBSERVATION_SET else ""
         return name if train_seed == self.seed + 1 else f"{name}_seed{train_seed}"
 
     def own_agents(self) -> list[str]:
