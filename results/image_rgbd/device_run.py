@@ -22,7 +22,6 @@ import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[2]
 CHUNK = 15 * 2**20
 
 
@@ -36,17 +35,6 @@ def record(path: str, food: str, demos: int, processes: int) -> None:
     print(f"{food}: {outcome.summary()}", flush=True)
     if outcome.kept < demos:
         raise SystemExit(f"{food}: kept {outcome.kept} of {demos} demos")
-
-
-def as_half(value):
-    """Floating-point tensors (nested in dicts) as float16: half the bytes to carry back."""
-    import torch
-
-    if isinstance(value, dict):
-        return type(value)((k, as_half(v)) for k, v in value.items())
-    if torch.is_tensor(value) and value.is_floating_point():
-        return value.half()
-    return value
 
 
 def main() -> None:
@@ -110,18 +98,19 @@ def main() -> None:
     trained = time.time() - t0
 
     import torch
+    from rebuild_checkpoint import cast_floats  # beside this script
 
-    checkpoints = sorted(glob.glob(str(work / "runs" / "rgbd" / "*" / "models" / "model_epoch_*.pth")))
-    checkpoints.sort(key=lambda c: int(c.rsplit("_", 1)[1].split(".")[0]))
-    if not checkpoints:
+    paths = glob.glob(str(work / "runs/rgbd/*/models/model_epoch_*.pth"))
+    saved = {int(Path(c).stem.rsplit("_", 1)[1]): c for c in paths}  # by epoch
+    if not saved:
         print(f"no checkpoint after {trained:.0f} s of training; see train.log", flush=True)
         sys.exit(1)
-    newest = checkpoints[-1]
-    epoch = int(newest.rsplit("_", 1)[1].split(".")[0])
-    times = sorted(os.path.getmtime(c) for c in checkpoints)
+    epoch = max(saved)
+    newest = saved[epoch]
+    times = sorted(os.path.getmtime(c) for c in saved.values())
     rate = (len(times) - 1) * args.steps_per_epoch / (times[-1] - times[0]) if len(times) > 1 else float("nan")
     ckpt = torch.load(newest, map_location="cpu", weights_only=False)
-    ckpt["model"] = as_half(ckpt["model"])
+    ckpt["model"] = cast_floats(ckpt["model"], torch.float16)  # half the bytes to carry back
     buffer = io.BytesIO()
     torch.save(ckpt, buffer)
     blob = buffer.getvalue()

@@ -14,19 +14,19 @@ from pathlib import Path
 import torch
 
 
-def as_float(value):
-    """float16 tensors (nested in dicts) as float32."""
+def cast_floats(value, dtype: torch.dtype):
+    """Floating-point tensors (nested in dicts) cast to ``dtype``; everything else as it is."""
     if isinstance(value, dict):
-        return type(value)((k, as_float(v)) for k, v in value.items())
-    if torch.is_tensor(value) and value.dtype == torch.float16:
-        return value.float()
+        return type(value)((k, cast_floats(v, dtype)) for k, v in value.items())
+    if torch.is_tensor(value) and value.is_floating_point():
+        return value.to(dtype)
     return value
 
 
 def main(folder: str, output: str) -> None:
     parts = sorted(Path(folder).glob("ckpt.part*"), key=lambda p: int(p.name.removeprefix("ckpt.part")))
     ckpt = torch.load(io.BytesIO(b"".join(p.read_bytes() for p in parts)), map_location="cpu", weights_only=False)
-    ckpt["model"] = as_float(ckpt["model"])
+    ckpt["model"] = cast_floats(ckpt["model"], torch.float32)
     Path(output).parent.mkdir(parents=True, exist_ok=True)
     torch.save(ckpt, output)
     print(f"joined {len(parts)} pieces into {output}")

@@ -27,7 +27,7 @@ OBSERVATION_SETS: dict[str, tuple[str, ...]] = {
     "no-load": ("robot0_eef_pos", "robot0_eef_quat", "desired_pose", "bowl_pos", "spoon_to_desired_pos"),
 }
 # the set of the low-dim configs in configs/json (tests/test_configs.py holds them to it): BC scored as well without
-# grain counts as with them (results/grid_calibrated_expert/)
+# grain counts as with them (results/grid_calibrated_noload/)
 DEFAULT_OBSERVATION_SET = "no-load"
 # the set every training run had before sets had names: its runs' folders carry no suffix, so those studies resume
 UNNAMED_RUNS_OBSERVATION_SET = "object"
