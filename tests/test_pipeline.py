@@ -259,6 +259,7 @@ CHEAP_STUDY = ["--profiles", "expert", "--algos", "bc", "--train-foods", "pasta"
 CHEAP_STUDY += ["--n-grains", "12", "--epochs", "2", "--steps-per-epoch", "5", "--horizon", "250"]
 
 
+@pytest.mark.xdist_group("studies")  # not beside test_ray.py's studies: each starts many processes
 def test_a_killed_study_resumes_and_skips_every_finished_piece(tmp_path):
     out = tmp_path / "study"
     args = [*CHEAP_STUDY, "--output-dir", out, "--demos-per-food", "1", "2", "--eval-steps", "5", "10"]

@@ -6,9 +6,11 @@ piece's own error stops the run; without the flag nothing imports Ray, and with 
 install command.
 """
 
+import contextlib
 import csv
 import json
 import os
+import signal
 import subprocess
 import sys
 from dataclasses import replace
@@ -22,8 +24,9 @@ from veragmil_suite.environments.settling import PileNotShipped, cache_dir
 from veragmil_suite.utils import distributed
 from veragmil_suite.utils.distributed import THIS_MACHINE, WorkerLost, ray_session, run_pieces
 
-# one worker runs this file's tests: its module fixtures are built once (make test: --dist loadgroup)
-pytestmark = pytest.mark.xdist_group("ray")
+# one worker runs this file's tests, so its module fixtures are built once (make test: --dist loadgroup), and the
+# killed-study test (the group's other member) never runs beside their studies: both start many processes
+pytestmark = pytest.mark.xdist_group("studies")
 
 BIN = Path(sys.executable).parent
 # the smallest grid: one demo of pasta, 2 x 5 gradient steps, one episode of each agent on pasta
@@ -31,6 +34,8 @@ GRID = [*CHEAP_STUDY, "--eval-foods", "pasta", "--demos-per-food", "1", "--episo
 # what an episode's outcome is: every column of episodes.csv but its wall time
 NOT_OUTCOME = ("wall_s",)
 SENTINEL_SPEED = 123.0
+# the two studies took 72 s beside the other worker's tests
+STUDY_TIMEOUT_S = 400
 
 
 def _run(command, *args, timeout=600):
@@ -66,10 +71,20 @@ def grids(ray_address, tmp_path_factory):
             stderr=subprocess.PIPE,
             stdin=subprocess.DEVNULL,
             text=True,
+            start_new_session=True,  # a study that hangs is killed with its workers
         )
         for where, flags in (("local", ["--processes", "2"]), ("ray", ["--ray", ray_address]))
     }
-    said = {where: run.communicate(timeout=900) for where, run in runs.items()}
+    said = {}
+    try:
+        for where, run in runs.items():
+            said[where] = run.communicate(timeout=STUDY_TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        for run in runs.values():
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(run.pid, signal.SIGKILL)
+        tails = {where: run.communicate()[1][-3000:] for where, run in runs.items() if where not in said}
+        pytest.fail(f"a study ran past {STUDY_TIMEOUT_S} s; stderr of those unfinished: {tails}")
     for where, run in runs.items():
         assert run.returncode == 0, f"{where}: " + said[where][0][-3000:] + said[where][1][-3000:]
     return out / "local", out / "ray", said["ray"][0]
