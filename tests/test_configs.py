@@ -27,6 +27,10 @@ ALLOWED = (
 )
 # recurrent policies: robomimic's BC-RNN is its BC template with the RNN switched on over a sequence
 ALLOWED_RNN = ("train.seq_length", "algo.rnn.enabled", "algo.rnn.horizon")
+# robomimic's paper preset of BC-RNN for human low-dim demonstrations (scripts/generate_paper_configs.py): a GMM head
+# straight on the LSTM; test_the_gmm_config_is_robomimics_paper_preset holds these keys to the preset's values
+PAPER_PRESET_RNN = ("algo.gmm.enabled", "algo.actor_layer_dims")
+PAPER_PRESET_CONFIGS = ("bc_rnn_gmm",)
 # Diffusion Policy: windows of its horizons, no next observations, DDIM instead of DDPM (configs/README.md)
 ALLOWED_DIFFUSION = (
     "train.frame_stack",
@@ -83,12 +87,24 @@ def test_config_differs_from_its_template_only_where_allowed(name):
     config = _load(name)
     allowed = ALLOWED + (ALLOWED_RNN if config["algo"].get("rnn", {}).get("enabled") else ())
     allowed += ALLOWED_DIFFUSION if config["algo_name"] == "diffusion_policy" else ()
+    allowed += PAPER_PRESET_RNN if name in PAPER_PRESET_CONFIGS else ()
     differences = _differences(config)
     assert differences, "a config identical to its template sets no dataset or observations"
     unexpected = sorted(
         k for k in differences if not any(k == a or (a.endswith(".") and k.startswith(a)) for a in allowed)
     )
     assert unexpected == [], f"{name}.json changes template settings it should leave alone: {unexpected}"
+
+
+def test_the_gmm_config_is_robomimics_paper_preset_for_human_demonstrations():
+    from robomimic.config import config_factory
+    from robomimic.scripts.generate_paper_configs import modify_bc_rnn_config_for_dataset
+
+    preset = json.loads(modify_bc_rnn_config_for_dataset(config_factory("bc"), "lift", "ph", "low_dim").dump())
+    ours = _load("bc_rnn_gmm")
+    assert _flatten(ours["algo"]) == _flatten(preset["algo"])
+    assert ours["train"]["seq_length"] == preset["train"]["seq_length"]
+    assert set(_differences(ours)) - set(_differences(_load("bc_rnn"))) == set(PAPER_PRESET_RNN)
 
 
 def test_the_check_catches_a_changed_hyperparameter():

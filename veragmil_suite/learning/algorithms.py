@@ -35,5 +35,7 @@ def register_algorithm(name: str, config: str, label: str) -> StudyAlgorithm:
 
 register_algorithm("bc", "bc", "BC")
 register_algorithm("bc_rnn", "bc_rnn", "BC-RNN")
+# robomimic's paper preset of BC-RNN for human demonstrations: a 5-mode GMM head straight on the LSTM
+register_algorithm("bc_rnn_gmm", "bc_rnn_gmm", "BC-RNN GMM")
 register_algorithm("bcq", "bcq", "BCQ")
 register_algorithm("diffusion_policy", "diffusion_policy", "Diffusion Policy")
