@@ -12,6 +12,8 @@ from pathlib import Path
 
 import pytest
 
+from veragmil_suite.learning.algorithms import ALGORITHMS
+
 ROOT = Path(__file__).resolve().parents[1]
 ENTRY_POINTS = dict(re.findall(r'"(veragmil-[\w-]+)=([\w.]+:\w+)"', (ROOT / "setup.py").read_text()))
 SAMPLE = str(ROOT / "demos" / "scoop.hdf5")
@@ -119,7 +121,7 @@ CASES = [
     ("veragmil-study", ["--output-dir", "{tmp}/s", "--episodes", "0"], "argument --episodes: must be a positive"),
     ("veragmil-study", ["--output-dir", "{tmp}/s", "--demos-per-food", "0"], "argument --demos-per-food: must be"),
     ("veragmil-study", ["--output-dir", "{tmp}/s", "--algo-epochs", "rnn=4"],
-     "argument --algo-epochs: 'rnn=4': unknown algorithm 'rnn'; accepted: bc, bc_rnn, bcq"),
+     f"argument --algo-epochs: 'rnn=4': unknown algorithm 'rnn'; accepted: {', '.join(sorted(ALGORITHMS))}"),
     ("veragmil-study", ["--output-dir", "{tmp}/s", "--algo-epochs", "bcq=0"],
      "argument --algo-epochs: 'bcq=0': must be a positive integer, got 0"),
     ("veragmil-quickstart", ["--episodes", "0"], "argument --episodes: must be a positive"),
