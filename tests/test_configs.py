@@ -28,7 +28,8 @@ ALLOWED = (
 # recurrent policies: robomimic's BC-RNN is its BC template with the RNN switched on over a sequence
 ALLOWED_RNN = ("train.seq_length", "algo.rnn.enabled", "algo.rnn.horizon")
 # robomimic's paper preset of BC-RNN for human low-dim demonstrations (scripts/generate_paper_configs.py): a GMM head
-# straight on the LSTM; test_the_gmm_config_is_robomimics_paper_preset holds these keys to the preset's values
+# straight on the LSTM; test_the_gmm_config_is_robomimics_paper_preset_for_human_demonstrations holds these keys to
+# the preset's values
 PAPER_PRESET_RNN = ("algo.gmm.enabled", "algo.actor_layer_dims")
 PAPER_PRESET_CONFIGS = ("bc_rnn_gmm",)
 # Diffusion Policy: windows of its horizons, no next observations, DDIM instead of DDPM (configs/README.md)
