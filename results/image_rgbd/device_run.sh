@@ -5,12 +5,7 @@
 set -uo pipefail
 start=$(date +%s)
 TRAIN_END=${TRAIN_END:-430}
-for f in .gl/*.deb; do dpkg -x "$f" /; done; ldconfig
-egl=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json
-[ -f $egl ] && export __EGL_VENDOR_LIBRARY_FILENAMES=$egl
-tar xJf .gpu/site.tar.xz -C /tmp || exit 1
-python3 -m pip install -q --no-index --no-deps --no-compile --target /tmp/site .gpu/wheels/*.whl || exit 1
-export PYTHONPATH=/tmp/site:$PWD MUJOCO_GL=egl PYOPENGL_PLATFORM=egl PYNPUT_BACKEND=dummy PYTHONUNBUFFERED=1
+source results/image_rgbd/device_setup.sh
 export VERAGMIL_CACHE_DIR=/tmp/piles
 nvidia-smi -L; nproc; python3 -c "import numpy, torch; print(numpy.__version__, torch.__version__)"
 python3 - <<'PY' || exit 1
