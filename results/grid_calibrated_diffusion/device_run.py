@@ -36,6 +36,7 @@ from pathlib import Path
 GPU_DIR = Path(".gpu")
 PIECES = 8
 FIRST_CALL = 4  # pieces back with the training call
+SAVE_EVERY = 4  # epochs between checkpoints on the machine
 WORK = Path("/tmp/dp")
 
 
@@ -55,7 +56,7 @@ def prepare(study_args: list[str]) -> None:
     device = copy.deepcopy(config)
     device["train"].update(data=str(GPU_DIR / "dataset.hdf5"), output_dir=str(WORK / "runs"), cuda=True)
     device["train"]["num_data_workers"] = 4
-    device["experiment"]["save"]["every_n_epochs"] = 4
+    device["experiment"]["save"]["every_n_epochs"] = SAVE_EVERY
     device["experiment"]["logging"]["log_tb"] = False
     GPU_DIR.mkdir(exist_ok=True)
     (GPU_DIR / "config.json").write_text(json.dumps(device, indent=4))
@@ -89,8 +90,8 @@ def train(out: Path, until: float) -> None:
     saved = {int(Path(p).stem.rsplit("_", 1)[1]): p for p in glob.glob(str(WORK / "runs/*/*/models/*.pth"))}
     if not saved:
         sys.exit(f"no checkpoint after {trained:.0f} s of training; see train.txt")
-    epoch = max(saved)
-    times = sorted(os.path.getmtime(p) for p in saved.values())
+    epoch, first = max(saved), min(saved)
+    span_s = os.path.getmtime(saved[epoch]) - os.path.getmtime(saved[first])
     steps_per_epoch = config["experiment"]["epoch_every_n_steps"]
     ckpt = torch.load(saved[epoch], map_location="cpu", weights_only=False)
     nets, ema = ckpt["model"]["nets"], dict(ckpt["model"]["ema"])
@@ -114,9 +115,7 @@ def train(out: Path, until: float) -> None:
         epochs=epoch,
         epochs_asked=config["train"]["num_epochs"],
         gradient_steps=epoch * steps_per_epoch,
-        steps_per_s_between_checkpoints=round((len(times) - 1) * 4 * steps_per_epoch / (times[-1] - times[0]), 2)
-        if len(times) > 1
-        else None,
+        steps_per_s_between_checkpoints=round((epoch - first) * steps_per_epoch / span_s, 2) if epoch > first else None,
         checkpoint_bytes_fp16=len(blob),
         piece_bytes=size,
     )
