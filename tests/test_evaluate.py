@@ -5,6 +5,7 @@ formats of episodes.csv and the journal, and clear errors (exit 2) for a bad foo
 """
 
 import csv
+import inspect
 import json
 import math
 import subprocess
@@ -15,15 +16,18 @@ from pathlib import Path
 import pytest
 from helpers.recording import record_file, tiny_env_kwargs
 
+from veragmil_suite.environments.scoop import ScoopGranular
 from veragmil_suite.evaluation.agents import (
+    AgentSpec,
     EpisodeRecord,
     EpisodeTask,
     EvaluationError,
     parse_agent_argument,
     parse_spec,
 )
-from veragmil_suite.evaluation.evaluate import JOURNAL_NAME, Journal, evaluate
+from veragmil_suite.evaluation.evaluate import JOURNAL_NAME, Journal, _recorded_settings, evaluate
 from veragmil_suite.evaluation.reporting import EvaluationResult
+from veragmil_suite.models.foods import DEFAULT_PHYSICS
 
 BIN = Path(sys.executable).parent
 # a cheap scene: a dozen pasta pieces, one settled pile
@@ -231,7 +235,11 @@ def test_cli_expert_and_dataset_in_two_processes_write_every_output(tmp_path):
     for e in expert:
         assert e["end_reason"] in ("success", "horizon", "gave up") and 0 < e["steps"] <= 300
         assert e["success"] or e["end_reason"] != "success"  # success: the last step's, as demos store it
-    assert saved["config"]["foods"] == ["pasta"] and saved["config"]["env_kwargs"] == CHEAP
+    assert saved["config"]["foods"] == ["pasta"] and saved["config"]["env_kwargs"] == {
+        **CHEAP,
+        "physics": DEFAULT_PHYSICS,
+    }
+    assert saved["config"]["horizon"] == 300
     assert "robosuite" in saved["config"]["versions"]
     assert "Table II" in result.stdout and "| pasta |" in result.stdout and "human" in result.stdout
     assert "episodes:" not in result.stderr  # --quiet: no progress bar
@@ -295,6 +303,31 @@ def test_checkpoint_agent_rolls_out_on_the_evaluated_food(tmp_path):
     assert {e.seed for e in result.episodes} == {7}
     assert "| peas | 0 (0-79) |" in result.markdown()  # one episode: a wide interval
     assert bc.stage == "start"  # 15 steps from the pre-scoop pose do not reach the pile
+    # what the episodes ran with, though none was asked for: the tiny dataset names no physics, so its checkpoint
+    # runs on Table I's (checkpoint_base_kwargs), the expert on the default
+    assert result.config["horizon"] == horizon
+    assert result.config["env_kwargs"] == {**CHEAP, "physics": {"BC": "table1", "expert": DEFAULT_PHYSICS}}
+
+
+def test_an_evaluation_records_the_horizon_and_physics_its_episodes_ran_with():
+    """Defaults resolved: an evaluation asked for nothing records what one that asked for the same values records
+    (they did not, and pool_results refused to pool a study's episodes with veragmil-evaluate's alike ones)."""
+    defaults = inspect.signature(ScoopGranular.__init__).parameters
+    horizon, physics = defaults["horizon"].default, defaults["physics"].default
+    expert = {"expert": parse_spec("expert")}
+    assert _recorded_settings(expert, {}, None, {}) == (horizon, {"physics": physics})
+    assert _recorded_settings(expert, {}, horizon, {"physics": physics}) == (horizon, {"physics": physics})
+    # a checkpoint runs on its training env's horizon and physics (none named: Table I's); agents that differ are
+    # recorded per agent
+    specs = {**expert, "old": AgentSpec("checkpoint", "old.pth")}
+    metas = {"old": {"env_kwargs": {"food": "rice", "horizon": 300, "n_grains": 50}}}
+    assert _recorded_settings(specs, metas, None, {"n_grains": 12}) == (
+        {"expert": horizon, "old": 300},
+        {"n_grains": 12, "physics": {"expert": physics, "old": "table1"}},
+    )
+    assert _recorded_settings(specs, metas, 200, {"physics": "table1"}) == (200, {"physics": "table1"})
+    # a dataset agent runs no episode
+    assert _recorded_settings({"human": AgentSpec("dataset", "x.hdf5")}, {}, None, {}) == (None, {})
 
 
 def test_a_checkpoint_of_several_foods_is_evaluated_on_each_food_asked(tmp_path):

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import inspect
 import io
 import json
 import math
@@ -33,6 +34,7 @@ from veragmil_suite.data.schema import VARIANTS_KEY, attr_text, demo_names, open
 from veragmil_suite.devices.expert import PROFILES, ScriptedScooper
 from veragmil_suite.environments import settling
 from veragmil_suite.environments.episode import SUCCESS_HOLD_S, run_until_done
+from veragmil_suite.environments.scoop import ScoopGranular
 from veragmil_suite.learning import robomimic_compat
 from veragmil_suite.models.foods import (
     FOODS,
@@ -207,6 +209,18 @@ def checkpoint_base_kwargs(env_meta: dict) -> dict:
     """A checkpoint's training env kwargs less those that describe its food, with its physics named (a checkpoint
     that names none was trained on PRE_CALIBRATION_PHYSICS, whatever the default is now)."""
     return {k: v for k, v in with_recorded_physics(env_meta["env_kwargs"]).items() if k not in FOOD_KWARGS}
+
+
+def episode_settings(env_meta: dict | None, horizon: int | None, env_kwargs: dict) -> dict:
+    """The horizon and physics an agent's episodes run with when given ``horizon`` and ``env_kwargs``: those asked
+    for, else its environment's own (``env_meta``, a checkpoint's training env; None: ScoopGranular's defaults,
+    as the expert runs)."""
+    base = EXPERT_KWARGS if env_meta is None else checkpoint_base_kwargs(env_meta)
+    kwargs = {**base, **env_kwargs}
+    defaults = inspect.signature(ScoopGranular.__init__).parameters
+    if horizon is None:
+        horizon = kwargs.get("horizon", defaults["horizon"].default)
+    return dict(horizon=int(horizon), physics=kwargs.get("physics", defaults["physics"].default))
 
 
 def _expert_env(task: EpisodeTask):

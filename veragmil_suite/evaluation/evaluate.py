@@ -28,6 +28,7 @@ from veragmil_suite.evaluation.agents import (
     dataset_episodes,
     driver_piles,
     env_metadata,
+    episode_settings,
     init_worker,
     parse_spec,
     run_task,
@@ -96,7 +97,8 @@ def evaluate(
         raise ValueError(f"horizon must be a positive integer, got {horizon}")
     if videos and output_dir is None:
         raise ValueError("videos need an output_dir to be written to")
-    robot = _evaluated_robot(specs, robot)
+    metas = {name: env_metadata(spec.target) for name, spec in specs.items() if spec.kind == "checkpoint"}
+    robot = _evaluated_robot(metas, robot)
     if robot != EXPERT_ROBOT:
         env_kwargs = {**(env_kwargs or {}), "robots": robot}
     video_dir = Path(output_dir) / "videos" if output_dir is not None else None
@@ -128,6 +130,7 @@ def evaluate(
             records += _run_parallel(tasks, int(processes), progress, journal, on_ray=address is not None)
     order = {name: i for i, name in enumerate(specs)}
     records.sort(key=lambda r: (order[r.agent], foods.index(r.food), r.episode))
+    horizon, env_kwargs = _recorded_settings(specs, metas, horizon, dict(env_kwargs or {}))
     config = dict(
         agents={name: str(spec) for name, spec in agents.items()},
         foods=foods,
@@ -138,7 +141,7 @@ def evaluate(
         ray=ray is not None,
         videos=int(videos),
         video_camera=video_camera,
-        env_kwargs=dict(env_kwargs or {}),
+        env_kwargs=env_kwargs,
         robot=robot,
         success_hold_s=SUCCESS_HOLD_S,
         episodes_run=episodes_run,
@@ -150,13 +153,30 @@ def evaluate(
     return result
 
 
-def _evaluated_robot(specs: dict, robot: str | None) -> str:
-    """The one robot of an evaluation: ``robot`` or the checkpoints'; a ValueError when a checkpoint's differs."""
+def _recorded_settings(
+    specs: dict, metas: dict, horizon: int | None, env_kwargs: dict
+) -> tuple[int | dict | None, dict]:
+    """The horizon and env kwargs an evaluation records: those its episodes ran with, defaults resolved, so that two
+    evaluations whose episodes are alike record alike however they were asked. A setting the agents do not share is
+    recorded per agent ({name: value}). The episodes' journal keys keep the values as asked."""
+    settings = {n: episode_settings(metas.get(n), horizon, env_kwargs) for n, s in specs.items() if s.kind != "dataset"}
+    if not settings:
+        return horizon, env_kwargs
+
+    def shared(key: str):
+        values = {n: s[key] for n, s in settings.items()}
+        return next(iter(values.values())) if len(set(values.values())) == 1 else values
+
+    return shared("horizon"), {**env_kwargs, "physics": shared("physics")}
+
+
+def _evaluated_robot(metas: dict, robot: str | None) -> str:
+    """The one robot of an evaluation: ``robot`` or the checkpoints' (``metas``: their env metadata by agent); a
+    ValueError when a checkpoint's differs."""
     trained = {}
-    for name, spec in specs.items():
-        if spec.kind == "checkpoint":
-            robots = env_metadata(spec.target)["env_kwargs"].get("robots", EXPERT_ROBOT)
-            trained[name] = robots[0] if isinstance(robots, (list, tuple)) else robots
+    for name, meta in metas.items():
+        robots = meta["env_kwargs"].get("robots", EXPERT_ROBOT)
+        trained[name] = robots[0] if isinstance(robots, (list, tuple)) else robots
     if robot is None:
         robot = next(iter(trained.values()), EXPERT_ROBOT)
     else:
