@@ -16,7 +16,7 @@ call, so pieces 0-3 come back with the training call and ``ship`` sends pieces 4
     python results/grid_calibrated_diffusion/device_run.py prepare -- <veragmil-study arguments>
     # run(command="bash results/grid_calibrated_diffusion/device_run.sh", carry=[".gpu"], timeout_s=590)
     # run(command="python3 results/grid_calibrated_diffusion/device_run.py ship --out $OUT", timeout_s=60)
-    python results/grid_calibrated_diffusion/device_run.py rebuild <files_at 1> <files_at 2>
+    python results/grid_calibrated_diffusion/device_run.py rebuild <files_at 1> <files_at 2> [--early-dir DIR]
 """
 
 from __future__ import annotations
@@ -38,6 +38,7 @@ PIECES = 8
 FIRST_CALL = 4  # pieces back with the training call
 SAVE_EVERY = 4  # epochs between checkpoints on the machine
 WORK = Path("/tmp/dp")
+STUDY_CONFIG = "study_config.json"  # the study's own training config, kept here by prepare
 
 
 def prepare(study_args: list[str]) -> None:
@@ -60,7 +61,8 @@ def prepare(study_args: list[str]) -> None:
     device["experiment"]["logging"]["log_tb"] = False
     GPU_DIR.mkdir(exist_ok=True)
     (GPU_DIR / "config.json").write_text(json.dumps(device, indent=4))
-    demos = slim(config["train"]["data"], str(GPU_DIR / "dataset.hdf5"), run["obs_set"])
+    (GPU_DIR / STUDY_CONFIG).write_text(json.dumps(config, indent=4))  # for rebuild: where the study looks
+    demos = slim(config["train"]["data"], str(GPU_DIR / "dataset.hdf5"), config)
     steps = config["experiment"]["epoch_every_n_steps"]
     print(f"{name}: {demos} demos, {config['train']['num_epochs']} x {steps} steps")
 
@@ -128,7 +130,7 @@ def ship(out: Path) -> None:
         (out / f"ckpt.part{i}").write_bytes((WORK / "parts" / f"ckpt.part{i}").read_bytes())
 
 
-def rebuild(folders: list[str]) -> None:
+def rebuild(folders: list[str], early_dir: Path | None) -> None:
     import torch
 
     pieces = {}
@@ -141,14 +143,17 @@ def rebuild(folders: list[str]) -> None:
     ckpt = torch.load(io.BytesIO(blob), map_location="cpu", weights_only=False)
     nets = {k: v.float() for k, v in ckpt["model"]["nets"].items()}
     ckpt["model"] = dict(nets=nets, ema=dict(ckpt["model"]["ema"], shadow_params=[v.clone() for v in nets.values()]))
-    config = json.loads(ckpt["config"])
-    name = config["experiment"]["name"]
-    study = json.loads(Path(f"runs/grid_calibrated/runs/{name}.json").read_text())
+    study = json.loads((GPU_DIR / STUDY_CONFIG).read_text())
+    name = study["experiment"]["name"]
+    if json.loads(ckpt["config"])["experiment"]["name"] != name:
+        sys.exit(f"the pieces are not of {name}, the run prepare made")
     ckpt["config"] = json.dumps(study, indent=4)  # the study's paths; the training is the same
     epoch, reached = study["train"]["num_epochs"], ckpt.pop("epoch")
-    target = Path(study["train"]["output_dir"]) / name / "device" / "models" / f"model_epoch_{epoch}.pth"
-    if reached != epoch:  # stopped by its time budget: not the study's run, so not where the study looks
-        target = Path("runs/grid_calibrated_diffusion") / f"{name}_epoch_{reached}.pth"
+    models = Path(study["train"]["output_dir"]) / name / "device" / "models"
+    # a run its time budget stopped early keeps its own epoch's name: the study evaluates only its last epoch
+    target = models / f"model_epoch_{reached}.pth"
+    if reached != epoch and early_dir is not None:
+        target = early_dir / f"{name}_epoch_{reached}.pth"
     target.parent.mkdir(parents=True, exist_ok=True)
     torch.save(ckpt, target)
     print(f"wrote {target}")
@@ -162,7 +167,9 @@ def main() -> None:
     t.add_argument("--out", type=Path, required=True)
     t.add_argument("--until", type=float, required=True, help="when training stops (Unix time)")
     sub.add_parser("ship").add_argument("--out", type=Path, required=True)
-    sub.add_parser("rebuild").add_argument("folders", nargs="+")
+    r = sub.add_parser("rebuild")
+    r.add_argument("folders", nargs="+")
+    r.add_argument("--early-dir", type=Path, help="where a run stopped before its last epoch goes (default: beside it)")
     args = p.parse_args()
     if args.verb == "prepare":
         prepare([a for a in args.study_args if a != "--"])
@@ -171,7 +178,7 @@ def main() -> None:
     elif args.verb == "ship":
         ship(args.out)
     else:
-        rebuild(args.folders)
+        rebuild(args.folders, args.early_dir)
 
 
 if __name__ == "__main__":
