@@ -84,6 +84,8 @@ setup(
             "veragmil-quickstart=veragmil_suite.scripts.quickstart:main",
             "veragmil-bench=veragmil_suite.scripts.bench:main",
             "veragmil-export-lerobot=veragmil_suite.scripts.export_lerobot:main",
+            "veragmil-pool-results=veragmil_suite.scripts.pool_results:main",
+            "veragmil-publish-results=veragmil_suite.scripts.publish_results:main",
         ]
     },
 )

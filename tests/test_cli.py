@@ -377,6 +377,9 @@ def committed_commands() -> list[tuple[str, str, list[str]]]:
                         continue
                     words = []
                     for word in tokens[i + 1 :]:
+                        if re.fullmatch(r"<[^<>]+>", word):  # a placeholder, "<the study above>"
+                            words.append("...")
+                            continue
                         if set(word) <= set(";|&") or re.fullmatch(r"\d*[<>]+.*", word):  # the command ends
                             break
                         words.append(word)

@@ -1,20 +1,15 @@
-"""scripts/pool_results.py: agents of separate evaluations pooled into one, their training seeds into seed tables."""
+"""veragmil-pool-results: agents of separate evaluations pooled into one, their training seeds into seed tables."""
 
 import json
-import runpy
 from pathlib import Path
 
 import pytest
 
 from veragmil_suite.evaluation.agents import EpisodeRecord
+from veragmil_suite.evaluation.reporting import pool
+from veragmil_suite.scripts.pool_results import main
 
-SCRIPT = Path(__file__).parents[1] / "scripts" / "pool_results.py"
 FOODS = ["rice", "pasta"]
-
-
-@pytest.fixture(scope="module")
-def pool_results():
-    return runpy.run_path(str(SCRIPT), run_name="pool_results")
 
 
 def _episode(agent: str, food: str, episode: int, success: bool) -> dict:
@@ -37,20 +32,23 @@ def _evaluation(path: Path, wins: dict[str, int], **config) -> Path:
     return path
 
 
-def test_agents_of_two_evaluations_pool_into_one_with_seed_tables(pool_results, tmp_path):
+def test_agents_of_two_evaluations_pool_into_one_with_seed_tables(tmp_path):
     old = _evaluation(tmp_path / "old.json", {"expert BC seed 1": 4, "expert BC seed 2": 2, "expert BCQ seed 1": 0})
     new = _evaluation(tmp_path / "new.json", {"expert BC": 1})
     out = tmp_path / "pooled"
-    pool_results["main"](
-        [
-            str(out),
-            "--agent",
-            f"{old}:expert BC seed 1",
-            "--agent",
-            f"{old}:expert BC seed 2",
-            "--agent",
-            f"expert BC seed 4={new}:expert BC",
-        ]
+    assert (
+        main(
+            [
+                str(out),
+                "--agent",
+                f"{old}:expert BC seed 1",
+                "--agent",
+                f"{old}:expert BC seed 2",
+                "--agent",
+                f"expert BC seed 4={new}:expert BC",
+            ]
+        )
+        == 0
     )
     results = json.loads((out / "results.json").read_text())
     assert list(results["config"]["agents"]) == ["expert BC seed 1", "expert BC seed 2", "expert BC seed 4"]
@@ -65,20 +63,31 @@ def test_agents_of_two_evaluations_pool_into_one_with_seed_tables(pool_results, 
     assert "| expert BC | 1, 2, 4 |" in (out / "seeds.md").read_text()
 
 
-def test_evaluations_that_differ_in_what_decides_an_episode_are_refused(pool_results, tmp_path):
+def test_evaluations_that_differ_in_what_decides_an_episode_are_refused(tmp_path):
     old = _evaluation(tmp_path / "old.json", {"expert BC seed 1": 4})
     new = _evaluation(tmp_path / "new.json", {"expert BC": 1}, horizon=300)
-    with pytest.raises(SystemExit, match="differ in 'horizon' \\(300 against 400\\)"):
-        pool_results["pool"]([("a", old, "expert BC seed 1"), ("b", new, "expert BC")])
+    with pytest.raises(ValueError, match="differ in 'horizon' \\(300 against 400\\)"):
+        pool([("a", old, "expert BC seed 1"), ("b", new, "expert BC")])
 
 
-def test_an_unknown_agent_is_refused_with_the_agents_there(pool_results, tmp_path):
+def test_an_unknown_agent_is_refused_with_the_agents_there(tmp_path):
     old = _evaluation(tmp_path / "old.json", {"expert BC seed 1": 4})
-    with pytest.raises(SystemExit, match="has no agent 'expert BCQ'; it has \\['expert BC seed 1'\\]"):
-        pool_results["pool"]([("a", old, "expert BCQ")])
+    with pytest.raises(ValueError, match="has no agent 'expert BCQ'; it has \\['expert BC seed 1'\\]"):
+        pool([("a", old, "expert BCQ")])
 
 
-def test_a_malformed_agent_argument_names_the_expected_form(pool_results, tmp_path, capsys):
-    with pytest.raises(SystemExit):
-        pool_results["main"]([str(tmp_path), "--agent", "expert BC seed 4=results.json"])
+def test_a_malformed_agent_argument_names_the_expected_form(tmp_path, capsys):
+    assert main([str(tmp_path), "--agent", "expert BC seed 4=results.json"]) == 2
     assert "expected NAME=RESULTS_JSON:AGENT" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("content", [None, "not JSON", "[1, 2]"])
+def test_a_file_that_is_not_an_evaluation_exits_2_in_one_line_and_writes_nothing(tmp_path, capsys, content):
+    source = tmp_path / "results.json"
+    if content is not None:
+        source.write_text(content)
+    out = tmp_path / "pooled"
+    assert main([str(out), "--agent", f"{source}:expert BC"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("veragmil-pool-results: ") and str(source) in err and len(err.splitlines()) == 1
+    assert not out.exists()

@@ -1,17 +1,12 @@
-"""scripts/publish_results.py: what a results/ folder records of the study that made it."""
+"""veragmil-publish-results: what a results/ folder records of the study that made it."""
 
 import json
-import runpy
 from pathlib import Path
 
 import pytest
 
-SCRIPT = Path(__file__).parents[1] / "scripts" / "publish_results.py"
-
-
-@pytest.fixture(scope="module")
-def publish_results():
-    return runpy.run_path(str(SCRIPT), run_name="publish_results")
+from veragmil_suite.scripts.publish_results import main
+from veragmil_suite.study.publish import publish
 
 
 def _study(tmp_path: Path, agents: dict[str, str], timings: dict[str, float]) -> Path:
@@ -24,7 +19,7 @@ def _study(tmp_path: Path, agents: dict[str, str], timings: dict[str, float]) ->
     return study
 
 
-def test_run_md_lists_only_the_pieces_behind_its_models(publish_results, tmp_path):
+def test_run_md_lists_only_the_pieces_behind_its_models(tmp_path):
     agents = {
         "expert operator": "expert:expert",
         "expert BC seed 4": "runs/grid/runs/expert_bc_30demos_50000steps_seed4/20261125/models/model_epoch_100.pth",
@@ -41,7 +36,7 @@ def test_run_md_lists_only_the_pieces_behind_its_models(publish_results, tmp_pat
         "evaluate": 599.8,
     }
     dest = tmp_path / "results" / "four_seeds"
-    written = publish_results["publish"](_study(tmp_path, agents, timings), dest, "veragmil-study --output-dir x")
+    written = publish(_study(tmp_path, agents, timings), dest, "veragmil-study --output-dir x")
     assert written == ["table.md", "results.json", "RUN.md"]
     run_md = (dest / "RUN.md").read_text()
     table = run_md.split("|---|---:|\n")[1].split("\n\n")[0]
@@ -55,6 +50,8 @@ def test_run_md_lists_only_the_pieces_behind_its_models(publish_results, tmp_pat
     assert "veragmil-study --output-dir x" in run_md and "mujoco 3.8.1" in run_md
 
 
-def test_an_unfinished_study_is_refused_by_name(publish_results, tmp_path):
-    with pytest.raises(SystemExit, match="results.json not found"):
-        publish_results["publish"](tmp_path / "nothing", tmp_path / "dest", "cmd")
+def test_an_unfinished_study_is_refused_by_name(tmp_path):
+    with pytest.raises(ValueError, match="results.json not found"):
+        publish(tmp_path / "nothing", tmp_path / "dest", "cmd")
+    assert main([str(tmp_path / "nothing"), "--output-dir", str(tmp_path / "dest"), "--command", "cmd"]) == 2
+    assert not (tmp_path / "dest").exists()

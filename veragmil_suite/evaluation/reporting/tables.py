@@ -12,14 +12,13 @@ import csv
 import io
 import json
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from veragmil_suite.environments.stages import SCOOP_STAGES
 from veragmil_suite.evaluation.agents import MISSING, EpisodeRecord
-from veragmil_suite.learning.algorithms import ALGORITHMS
 from veragmil_suite.models.foods import PRE_CALIBRATION_PHYSICS, TRAINING_FOODS
 
 SEEN_LABEL = "seen (training)"
@@ -341,143 +340,3 @@ class EvaluationResult:
 def video_name(agent: str, food: str, episode: int) -> str:
     safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in agent)
     return f"{safe}_{food}_{episode}.mp4"
-
-
-def _average_rows(result) -> dict[str, dict]:
-    """Table II's average rows of ``result`` by group, "seen", "unseen" and "overall" (those its foods have)."""
-    names = {SEEN_LABEL: "seen", UNSEEN_LABEL: "unseen", "all": "overall"}
-    rows = table_rows(result.summary, result.agents, result.foods)["table2"]
-    return {names[r["group"]]: r for r in rows if r["food"].endswith(" average")}
-
-
-def learning_curves(result, points: list[dict]) -> list[dict]:
-    """Success on seen and unseen foods (each food weighing the same, 95% Wilson intervals of the group's totals)
-    per checkpoint of a sweep: ``points`` name each checkpoint agent's profile, algo, demos per food and steps."""
-    averages = _average_rows(result)
-    out = []
-    for point in points:
-        row = dict(point)
-        for key in ("seen", "unseen"):
-            group = averages.get(key)
-            if group is None:
-                continue
-            a = point["agent"]
-            low, high = wilson_interval(group[f"{a} successes"], group[f"{a} episodes"])
-            row.update({f"{key} success %": group[a], f"{key} ci95 low": 100 * low, f"{key} ci95 high": 100 * high})
-        out.append(row)
-    return out
-
-
-def write_learning_curves(result, points: list[dict], out_dir: Path) -> None:
-    """curves.csv and curves.png: success against gradient steps (one line per demo count) and against demos
-    per food (one line per step count), seen and unseen foods."""
-    import matplotlib  # heavy: matplotlib, only when plotting
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt  # heavy: matplotlib, only when plotting
-
-    rows = learning_curves(result, points)
-    columns = list(dict.fromkeys(k for r in rows for k in r))
-    with open(out_dir / "curves.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=columns)
-        writer.writeheader()
-        writer.writerows(rows)
-    axes_of = [("steps", "gradient steps", "demos_per_food", "demos/food"), ("demos_per_food", "demos per food",
-               "steps", "steps")]  # fmt: skip
-    axes_of = [a for a in axes_of if len({r[a[0]] for r in rows}) > 1]
-    fig, axes = plt.subplots(1, len(axes_of), figsize=(5.5 * len(axes_of), 3.8), squeeze=False)
-    several_seeds = len({r["train_seed"] for r in rows}) > 1
-    for ax, (x_key, x_label, line_key, line_label) in zip(axes[0], axes_of):
-        by_line = _groups_by(rows, ("profile", "algo", "obs_set", line_key, "train_seed"))
-        for (profile, algo, obs, line, seed), group in by_line.items():
-            group = sorted(group, key=lambda r: r[x_key])
-            x = [r[x_key] for r in group]
-            for key, style in (("seen", "-o"), ("unseen", "--s")):
-                if f"{key} success %" not in group[0]:
-                    continue
-                y = np.array([r[f"{key} success %"] for r in group])
-                err = np.array([[y_ - r[f"{key} ci95 low"], r[f"{key} ci95 high"] - y_] for y_, r in zip(y, group)]).T
-                seed_label = f", seed {seed}" if several_seeds else ""
-                name = f"{profile} {ALGORITHMS[algo].label} {obs} obs, {line} {line_label}{seed_label}, {key}"
-                ax.errorbar(x, y, yerr=err, fmt=style, capsize=3, label=name)
-        ax.set_xscale("log")
-        ax.minorticks_off()
-        ax.set_xticks(sorted({r[x_key] for r in rows}), [str(v) for v in sorted({r[x_key] for r in rows})])
-        ax.set_xlabel(x_label)
-        ax.set_ylabel("success (%, 95% CI)")
-        ax.set_ylim(0, 100)
-        ax.legend(fontsize="x-small")
-    fig.tight_layout()
-    fig.savefig(out_dir / "curves.png", dpi=100)
-    plt.close(fig)
-
-
-def seed_spread(result, points: list[dict]) -> list[dict]:
-    """Success on seen, unseen and all foods (each food weighing the same) of every training seed of each recipe
-    (``points`` name each checkpoint agent's recipe and training seed), then the recipe's mean, lowest and highest
-    over its seeds."""
-    averages = _average_rows(result)
-    out = []
-    for (recipe,), seeds in _groups_by(points, ("recipe",)).items():
-        per_seed = [
-            dict(
-                recipe=recipe,
-                train_seed=p["train_seed"],
-                **{f"{g} success %": averages[g][p["agent"]] for g in averages},
-            )
-            for p in seeds
-        ]
-        out += per_seed
-        for stat, reduce in (("mean", np.mean), ("lowest", np.min), ("highest", np.max)):
-            values = {f"{g} success %": float(reduce([r[f"{g} success %"] for r in per_seed])) for g in averages}
-            out.append(dict(recipe=recipe, train_seed=stat, **values))
-    return out
-
-
-def seed_markdown(rows: list[dict]) -> str:
-    """The seed table: per recipe, its mean success and the range over its training seeds, then each seed's."""
-    groups = [g for g in ("seen", "unseen", "overall") if f"{g} success %" in rows[0]]
-    lines = [
-        "Success over training seeds (%, each food weighing the same; mean and lowest-highest over the seeds, "
-        "every seed's model scored on the same episodes)",
-        "",
-        "| model | training seeds | " + " | ".join(groups) + " | " + " | ".join(f"{g} per seed" for g in groups) + " |",
-        "|---|---|" + "---:|" * (2 * len(groups)),
-    ]
-    for (recipe,), group in _groups_by(rows, ("recipe",)).items():
-        stats = {r["train_seed"]: r for r in group if isinstance(r["train_seed"], str)}
-        seeds = [r for r in group if not isinstance(r["train_seed"], str)]
-        cells = [
-            f"{stats['mean'][f'{g} success %']:.0f} ({stats['lowest'][f'{g} success %']:.0f}-"
-            f"{stats['highest'][f'{g} success %']:.0f})"
-            for g in groups
-        ]
-        cells += [", ".join(f"{r[f'{g} success %']:.0f}" for r in seeds) for g in groups]
-        lines.append(f"| {recipe} | {', '.join(str(r['train_seed']) for r in seeds)} | " + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
-
-
-def write_seed_tables(result, points: list[dict], out_dir: Path) -> None:
-    """seeds.md and seeds.csv (seed_spread), and seeds/: the tables, stages and chart with each recipe's seeds
-    pooled into one column (its episodes of every seed; intervals over the pooled episodes)."""
-    rows = seed_spread(result, points)
-    with open(out_dir / "seeds.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-    (out_dir / "seeds.md").write_text(seed_markdown(rows))
-    recipe_of = {p["agent"]: p["recipe"] for p in points}
-    pooled = EvaluationResult(
-        episodes=[replace(e, agent=recipe_of.get(e.agent, e.agent)) for e in result.episodes],
-        agents=list(dict.fromkeys(recipe_of.get(a, a) for a in result.agents)),
-        foods=result.foods,
-        config=dict(result.config, pooled_training_seeds=sorted({p["train_seed"] for p in points})),
-    )
-    pooled.write(str(out_dir / "seeds"))
-
-
-def _groups_by(rows: list[dict], keys: tuple[str, ...]) -> dict[tuple, list[dict]]:
-    out: dict[tuple, list[dict]] = {}
-    for r in rows:
-        out.setdefault(tuple(r[k] for k in keys), []).append(r)
-    return out

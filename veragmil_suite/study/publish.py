@@ -1,18 +1,13 @@
-"""
-Copies a study's tables and records into results/ with how they were made: the command, the host, the package
-versions and the wall times. Datasets and checkpoints stay behind (the command regenerates them).
-
-    python scripts/publish_results.py runs/grid results/grid --command "veragmil-study --output-dir runs/grid ..."
-"""
+"""Publishing a study: its tables and records copied into results/ with how they were made (the command, the host,
+the package versions and the wall times of the pieces behind its models). Datasets and checkpoints stay behind: the
+command regenerates them."""
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import platform
 import shutil
-import sys
 from pathlib import Path
 
 # what a study's eval/ folder holds that results/ keeps
@@ -69,10 +64,15 @@ def own_timings(timings: dict[str, float], agents: dict[str, str]) -> dict[str, 
 
 
 def publish(study_dir: Path, dest: Path, command: str) -> list[str]:
-    """Copies the study's eval outputs and timings to ``dest`` and writes RUN.md; returns the files written."""
+    """
+    Copies the study's eval outputs and timings to ``dest`` and writes RUN.md; returns the files written.
+
+    Raises:
+        ValueError: [``study_dir`` holds no finished evaluation]
+    """
     eval_dir = study_dir / "eval"
     if not (eval_dir / "results.json").is_file():
-        raise SystemExit(f"publish_results: {eval_dir}/results.json not found: is {study_dir} a finished study?")
+        raise ValueError(f"{eval_dir}/results.json not found: is {study_dir} a finished study?")
     dest.mkdir(parents=True, exist_ok=True)
     written = []
     for name in EVAL_FILES:
@@ -109,18 +109,3 @@ def publish(study_dir: Path, dest: Path, command: str) -> list[str]:
     ]
     (dest / "RUN.md").write_text("\n".join(lines))
     return [*written, "RUN.md"]
-
-
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[1].strip())
-    parser.add_argument("study_dir", type=Path, help="a veragmil-study --output-dir")
-    parser.add_argument("dest", type=Path, help="a folder under results/")
-    parser.add_argument("--command", required=True, help="the exact command that made the study")
-    args = parser.parse_args(argv)
-    for name in publish(args.study_dir, args.dest, args.command):
-        print(args.dest / name)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

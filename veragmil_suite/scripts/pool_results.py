@@ -1,0 +1,72 @@
+"""
+veragmil-pool-results: pool agents of finished evaluations (each a results.json) into one evaluation folder, as if
+one run had scored them all: the tables, stages and chart, and, when a recipe has several training seeds (agents
+named "<recipe> seed <n>"), the seed tables a multi-seed study writes.
+
+A later training seed is scored alone, then pooled with the seeds an earlier study scored, without re-running their
+episodes:
+
+    veragmil-pool-results runs/bc_four_seeds/eval \\
+        --agent "expert BC seed 1=results/grid_stockobs_expert/results.json:expert BC seed 1" \\
+        --agent "expert BC seed 4=runs/grid_bc4/eval/results.json:expert BC"
+
+The evaluations must agree on what decides an episode's outcome (foods, episodes, seeds, horizon, robot, success
+hold, env kwargs, package versions); a mismatch names the setting and both values.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections import Counter
+from pathlib import Path
+
+from veragmil_suite.evaluation.reporting import pool, write_seed_tables
+from veragmil_suite.utils import cli
+from veragmil_suite.utils.cli.handler import UsageError, command
+from veragmil_suite.utils.cli.parser import Parser
+
+
+def parse_agent(text: str) -> tuple[str, Path, str]:
+    """``NAME=RESULTS_JSON:AGENT`` (``RESULTS_JSON:AGENT`` keeps the agent's name) -> (name, source, agent)."""
+    name, sep, rest = text.partition("=")
+    if not sep:
+        name, rest = "", text
+    source, sep, agent = rest.rpartition(":")
+    if not sep or not source or not agent.strip():
+        raise UsageError(f"--agent: expected NAME=RESULTS_JSON:AGENT or RESULTS_JSON:AGENT, got {text!r}")
+    return (name.strip() or agent.strip()), Path(source), agent.strip()
+
+
+def build_parser() -> Parser:
+    p = Parser(
+        "veragmil-pool-results", description=__doc__.split("\n\n")[0].strip(), epilog=__doc__.split("\n\n", 1)[1]
+    )
+    p.add_argument("output_dir", type=cli.output_folder, help="the pooled evaluation's folder (a study's eval/ shape)")
+    p.add_argument(
+        "--agent",
+        type=cli.Text("NAME=RESULTS_JSON:AGENT or RESULTS_JSON:AGENT"),
+        action="append",
+        required=True,
+        metavar="NAME=RESULTS_JSON:AGENT",
+        help="an agent of a finished evaluation, under a new name ('<recipe> seed <n>' joins the seed tables)",
+    )
+    return p
+
+
+@command(build_parser)
+def main(args: argparse.Namespace) -> int:
+    try:
+        result, points = pool([parse_agent(text) for text in args.agent])
+    except ValueError as e:
+        raise UsageError(str(e)) from None
+    for path in result.write(str(args.output_dir)).values():
+        print(path)
+    if any(n > 1 for n in Counter(p["recipe"] for p in points).values()):
+        write_seed_tables(result, points, Path(args.output_dir))
+        print(Path(args.output_dir) / "seeds.md")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
