@@ -27,15 +27,21 @@ from veragmil_suite.utils.cli.handler import UsageError, command
 from veragmil_suite.utils.cli.parser import Parser
 
 
-def parse_agent(text: str) -> tuple[str, Path, str]:
+class PooledAgent(cli.Text):
     """``NAME=RESULTS_JSON:AGENT`` (``RESULTS_JSON:AGENT`` keeps the agent's name) -> (name, source, agent)."""
-    name, sep, rest = text.partition("=")
-    if not sep:
-        name, rest = "", text
-    source, sep, agent = rest.rpartition(":")
-    if not sep or not source or not agent.strip():
-        raise UsageError(f"--agent: expected NAME=RESULTS_JSON:AGENT or RESULTS_JSON:AGENT, got {text!r}")
-    return (name.strip() or agent.strip()), Path(source), agent.strip()
+
+    def __init__(self):
+        super().__init__("NAME=RESULTS_JSON:AGENT or RESULTS_JSON:AGENT")
+
+    def __call__(self, text: str) -> tuple[str, Path, str]:
+        super().__call__(text)
+        name, sep, rest = text.partition("=")
+        if not sep:
+            name, rest = "", text
+        source, sep, agent = rest.rpartition(":")
+        if not sep or not source or not agent.strip():
+            raise self.refuse(text, f"expected {self.accepted}")
+        return (name.strip() or agent.strip()), Path(source), agent.strip()
 
 
 def build_parser() -> Parser:
@@ -45,7 +51,7 @@ def build_parser() -> Parser:
     p.add_argument("output_dir", type=cli.output_folder, help="the pooled evaluation's folder (a study's eval/ shape)")
     p.add_argument(
         "--agent",
-        type=cli.Text("NAME=RESULTS_JSON:AGENT or RESULTS_JSON:AGENT"),
+        type=PooledAgent(),
         action="append",
         required=True,
         metavar="NAME=RESULTS_JSON:AGENT",
@@ -57,7 +63,7 @@ def build_parser() -> Parser:
 @command(build_parser)
 def main(args: argparse.Namespace) -> int:
     try:
-        result, points = pool([parse_agent(text) for text in args.agent])
+        result, points = pool(args.agent)
     except ValueError as e:
         raise UsageError(str(e)) from None
     for path in result.write(str(args.output_dir)).values():
