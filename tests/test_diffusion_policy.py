@@ -13,6 +13,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from helpers.programs import run_program
 
 from veragmil_suite.learning import robomimic_compat
 
@@ -20,7 +21,6 @@ from veragmil_suite.learning import robomimic_compat
 pytestmark = pytest.mark.xdist_group("diffusion_policy")
 
 ROOT = Path(__file__).resolve().parents[1]
-BIN = Path(sys.executable).parent
 SAMPLE_DATA = ROOT / "demos" / "scoop.hdf5"
 ACTION_DIM = 6
 EPOCHS = 3
@@ -39,12 +39,6 @@ def _tiny_config(out_dir: Path, name: str) -> dict:
     return config
 
 
-def _run(command, *args, timeout=600):
-    return subprocess.run(
-        [str(BIN / command), *map(str, args)], capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL
-    )
-
-
 def _epoch_losses(stdout: str) -> list[float]:
     return [float(v) for v in re.findall(r"Train Epoch \d+\n\{\n\s+\"Loss\": ([0-9.e+-]+)", stdout)]
 
@@ -55,7 +49,7 @@ def trained(tmp_path_factory):
     out = tmp_path_factory.mktemp("dp")
     config = out / "dp.json"
     config.write_text(json.dumps(_tiny_config(out / "runs", "tiny_dp")))
-    result = _run("veragmil-train", "--config", config)
+    result = run_program("veragmil-train", "--config", config, check=False)
     checkpoints = sorted((out / "runs" / "tiny_dp").glob("*/models/*.pth"))
     return result, checkpoints
 
@@ -173,8 +167,8 @@ def test_run_agent_rolls_the_checkpoint_out_in_a_framestacked_env(trained, tmp_p
     result, checkpoints = trained
     assert result.returncode == 0, result.stderr[-3000:]
     out = tmp_path / "rollouts.hdf5"
-    agent = _run("veragmil-run-agent", "--agent", checkpoints[0], "--n_rollouts", 1, "--horizon", 10,
-                 "--dataset_path", out)  # fmt: skip
+    agent = run_program("veragmil-run-agent", "--agent", checkpoints[0], "--n_rollouts", 1, "--horizon", 10,
+                 "--dataset_path", out, check=False)  # fmt: skip
     assert agent.returncode == 0, agent.stdout[-3000:] + agent.stderr[-3000:]
     with h5py.File(out, "r") as f:
         actions = f["data/demo_0/actions"][:]

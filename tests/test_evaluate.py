@@ -8,12 +8,11 @@ import csv
 import inspect
 import json
 import math
-import subprocess
-import sys
 from dataclasses import replace
 from pathlib import Path
 
 import pytest
+from helpers.programs import run_program
 from helpers.recording import record_file, tiny_env_kwargs
 
 from veragmil_suite.environments.scoop import ScoopGranular
@@ -29,7 +28,6 @@ from veragmil_suite.evaluation.evaluate import JOURNAL_NAME, Journal, _recorded_
 from veragmil_suite.evaluation.reporting import EvaluationResult
 from veragmil_suite.models.foods import DEFAULT_PHYSICS
 
-BIN = Path(sys.executable).parent
 # a cheap scene: a dozen pasta pieces, one settled pile
 CHEAP = {"n_grains": 12, "pile_variants": 1}
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -51,16 +49,6 @@ JOURNAL_LINE = (
 # the same episode as written since grams and the physics are recorded (grams unknown in a journal of before: null;
 # its physics the one every episode ran on before the choice, table1)
 JOURNAL_LINE_NOW = JOURNAL_LINE[:-2] + ', "spilled_mass_g": null, "spoon_mass_g": null, "physics": "table1"}}'
-
-
-def _run(*args, timeout=300):
-    return subprocess.run(
-        [str(BIN / "veragmil-evaluate"), *map(str, args)],
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        stdin=subprocess.DEVNULL,
-    )
 
 
 def _episode(agent, food, success, spilled, time_s, episode=0):
@@ -223,7 +211,7 @@ def test_cli_expert_and_dataset_in_two_processes_write_every_output(tmp_path):
     out = tmp_path / "eval"
     args = ["--agent", "expert", "--agent", f"human=dataset:{dataset}", "--foods", "pasta", "--episodes", 2]
     args += ["--processes", 2, "--output-dir", out, "--horizon", 300, "--env-kwargs", json.dumps(CHEAP)]
-    result = _run(*args, "--videos", 1, "--quiet")
+    result = run_program("veragmil-evaluate", *args, "--videos", 1, "--quiet", check=False)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
     for name in ("episodes.csv", "results.json", "table.md", "table.csv", "success.png", "videos/expert_pasta_0.mp4"):
         assert (out / name).stat().st_size > 0, name
@@ -244,7 +232,7 @@ def test_cli_expert_and_dataset_in_two_processes_write_every_output(tmp_path):
     assert "Table II" in result.stdout and "| pasta |" in result.stdout and "human" in result.stdout
     assert "episodes:" not in result.stderr  # --quiet: no progress bar
     # --resume takes the journaled episodes (a video's episode too, its file being there) and writes the same tables
-    again = _run(*args, "--videos", 1, "--quiet", "--resume")
+    again = run_program("veragmil-evaluate", *args, "--videos", 1, "--quiet", "--resume", check=False)
     assert again.returncode == 0, again.stdout[-3000:] + again.stderr[-3000:]
     assert "skipping 2 evaluation episodes journaled" in again.stdout and "; 0 to run" in again.stdout
     resumed = json.loads((out / "results.json").read_text())

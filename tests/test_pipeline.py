@@ -6,32 +6,19 @@ import os
 import re
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import h5py
 import pytest
 from helpers.output import warning_lines
+from helpers.programs import BIN, run_program
 
 from veragmil_suite.learning.algorithms import ALGORITHMS
 from veragmil_suite.study.record import record_food
 from veragmil_suite.study.settings import PipelineSettings, StageError
 from veragmil_suite.study.training import training_config
 from veragmil_suite.utils.asset_paths import config_path
-
-BIN = Path(sys.executable).parent
-
-
-def _run(command, *args, timeout=600, cwd=None):
-    return subprocess.run(
-        [str(BIN / command), *map(str, args)],
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        stdin=subprocess.DEVNULL,
-        cwd=cwd,
-    )
 
 
 @pytest.mark.parametrize("algo", ["bc", "bc_rnn", "bcq", "diffusion_policy"])
@@ -69,9 +56,11 @@ def test_bad_settings_name_the_accepted_values(tmp_path):
     with pytest.raises(ValueError, match="agent name 'expert BC no-load obs' is taken by one of this run's own"):
         PipelineSettings(output_dir=str(tmp_path), agents={"expert BC no-load obs": "expert:careful"})
     assert PipelineSettings(output_dir=str(tmp_path), agents={"careful": "expert:careful"}).agents
-    result = _run("veragmil-study", "--output-dir", tmp_path / "s", "--algos", "gail", timeout=60)
+    result = run_program("veragmil-study", "--output-dir", tmp_path / "s", "--algos", "gail", timeout=60, check=False)
     assert result.returncode == 2 and "argument --algos: unknown algorithm 'gail'; accepted: bc, " in result.stderr
-    result = _run("veragmil-quickstart", "--output-dir", tmp_path / "q", "--episodes", "0", timeout=60)
+    result = run_program(
+        "veragmil-quickstart", "--output-dir", tmp_path / "q", "--episodes", "0", timeout=60, check=False
+    )
     assert result.returncode == 2 and "argument --episodes: must be a positive integer, got 0" in result.stderr
     assert not (tmp_path / "q").exists() and not (tmp_path / "s").exists()
 
@@ -227,7 +216,7 @@ def test_quickstart_end_to_end_records_trains_evaluates_and_prints_the_tables(tm
     out = tmp_path / "qs"
     args = ["--output-dir", out, "--train-foods", "pasta", "--eval-foods", "pasta", "peas", "--n-grains", "12"]
     args += ["--demos-per-food", "1", "--epochs", "2", "--steps-per-epoch", "5", "--episodes", "1", "--horizon", "250"]
-    result = _run("veragmil-quickstart", *args)
+    result = run_program("veragmil-quickstart", *args, check=False)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
     with h5py.File(out / "data" / "expert.hdf5") as f:
         assert len(f["data"]) == 1
@@ -288,7 +277,7 @@ def test_a_killed_study_resumes_and_skips_every_finished_piece(tmp_path):
     checkpoints = sorted((out / "runs").glob("expert_bc_*/*/models/*.pth"))
     assert len(checkpoints) == 4  # 2 demo counts x checkpoints at 5 and 10 steps
 
-    again = _run("veragmil-study", *args)
+    again = run_program("veragmil-study", *args, check=False)
     assert again.returncode == 0, again.stdout[-3000:] + again.stderr[-3000:]
     config = json.loads((out / "eval" / "results.json").read_text())["config"]
     assert config["env_kwargs"]["physics"] == "calibrated" and config["physics"] == ["calibrated"]  # every agent on it
@@ -325,7 +314,9 @@ def test_a_killed_study_resumes_and_skips_every_finished_piece(tmp_path):
     # asking for the last checkpoints only finds everything done: the same runs, the episodes journaled, and the wall
     # times kept of the runs that did the work
     timings = json.loads((out / "timings.json").read_text())
-    last_only = _run("veragmil-study", *args[: args.index("--eval-steps")], "--eval-foods", "pasta", "--episodes", "1")
+    last_only = run_program(
+        "veragmil-study", *args[: args.index("--eval-steps")], "--eval-foods", "pasta", "--episodes", "1", check=False
+    )
     assert last_only.returncode == 0 and "skipping training expert_bc_2demos_10steps_obs-no-load" in last_only.stdout
     assert "skipping recording expert pasta" in last_only.stdout
     assert "skipping 3 evaluation episodes" in last_only.stdout  # operator and the two last checkpoints
@@ -333,7 +324,7 @@ def test_a_killed_study_resumes_and_skips_every_finished_piece(tmp_path):
     assert json.loads((out / "timings.json").read_text()) == timings
     # a second training seed trains one more run beside the first (kept: it is seed 1's) and reports the spread
     seeds = [*CHEAP_STUDY, "--output-dir", out, "--demos-per-food", "1", "--eval-foods", "pasta", "--episodes", "1"]
-    two = _run("veragmil-study", *seeds, "--train-seeds", "1", "2", "--no-operators")
+    two = run_program("veragmil-study", *seeds, "--train-seeds", "1", "2", "--no-operators", check=False)
     assert two.returncode == 0, two.stdout[-3000:] + two.stderr[-3000:]
     assert "skipping training expert_bc_1demos_10steps_obs-no-load:" in two.stdout
     assert len(list((out / "runs").glob("expert_bc_1demos_10steps_obs-no-load_seed2/*/models/model_epoch_2.pth"))) == 1
@@ -349,7 +340,7 @@ def test_a_killed_study_resumes_and_skips_every_finished_piece(tmp_path):
     pooled = json.loads((out / "eval" / "seeds" / "results.json").read_text())
     assert [(s["agent"], s["episodes"]) for s in pooled["summary"]] == [("expert BC no-load obs", 2)]
     # back to one seed: the seed tables of the run before would describe agents this run's table does not hold
-    one = _run("veragmil-study", *seeds, "--no-operators")
+    one = run_program("veragmil-study", *seeds, "--no-operators", check=False)
     assert one.returncode == 0 and "; 0 to run" in one.stdout
     assert not any((out / "eval" / name).exists() for name in ("seeds.csv", "seeds.md", "seeds"))
 
@@ -364,7 +355,7 @@ def test_a_study_refuses_to_mix_settings_in_one_folder_before_it_writes_anything
     args = [*CHEAP_STUDY, "--output-dir", out, "--demos-per-food", "1", "--episodes", "1"]
     (out / "runs" / "expert_bc_1demos_10steps_obs-no-load.json").write_text(json.dumps({"another": "config"}))
     before = _tree(out)
-    result = _run("veragmil-study", *args)
+    result = run_program("veragmil-study", *args, check=False)
     assert result.returncode == 1 and "holds another config for expert_bc_1demos_10steps_obs-no-load" in result.stderr
     assert _tree(out) == before and not (out / "data").exists()  # nothing recorded, merged or trained first
 
@@ -387,7 +378,9 @@ def test_a_study_of_other_foods_leaves_another_studys_merged_dataset_alone(tmp_p
     for path in foods:  # the merged dataset alone: the foods' files are checked on their own
         path.unlink()
     before = _tree(out)
-    result = _run("veragmil-study", *CHEAP_STUDY, "--output-dir", out, "--demos-per-food", "1", "--episodes", "1")
+    result = run_program(
+        "veragmil-study", *CHEAP_STUDY, "--output-dir", out, "--demos-per-food", "1", "--episodes", "1", check=False
+    )
     assert result.returncode == 1, result.stdout[-2000:] + result.stderr[-2000:]
     assert "expert.hdf5 merges pasta.hdf5, peas.hdf5 (asked: pasta.hdf5)" in result.stderr
     assert _tree(out) == before

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import h5py
 import pytest
+from helpers.programs import BIN, run_program
 from test_pipeline import CHEAP_STUDY
 
 from veragmil_suite.environments.settling import PileNotShipped, cache_dir
@@ -29,7 +30,6 @@ from veragmil_suite.utils.distributed import THIS_MACHINE, WorkerLost, ray_sessi
 # killed-study test (the group's other member) never runs beside their studies: both start many processes
 pytestmark = pytest.mark.xdist_group("studies")
 
-BIN = Path(sys.executable).parent
 # the smallest grid: one demo of pasta, 2 x 5 gradient steps, one episode of each agent on pasta
 GRID = [*CHEAP_STUDY, "--eval-foods", "pasta", "--demos-per-food", "1", "--episodes", "1"]
 # what an episode's outcome is: every column of episodes.csv but its wall time
@@ -37,12 +37,6 @@ NOT_OUTCOME = ("wall_s",)
 SENTINEL_SPEED = 123.0
 # the two studies took 72 s beside the other worker's tests
 STUDY_TIMEOUT_S = 400
-
-
-def _run(command, *args, timeout=600):
-    return subprocess.run(
-        [str(BIN / command), *map(str, args)], capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL
-    )
 
 
 @pytest.fixture(scope="module")
@@ -126,7 +120,7 @@ def test_veragmil_evaluate_on_ray_scores_the_studys_episode(grids, ray_address, 
     local, _, _ = grids
     args = ["--agent", "expert operator=expert", "--foods", "pasta", "--episodes", 1, "--seed", 100000]
     args += ["--horizon", 250, "--env-kwargs", json.dumps({"n_grains": 12}), "--quiet", "--output-dir", tmp_path]
-    result = _run("veragmil-evaluate", *args, "--ray", ray_address)
+    result = run_program("veragmil-evaluate", *args, "--ray", ray_address, check=False)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
     study = [row for row in _outcomes(local / "eval" / "episodes.csv") if row[0] == "expert operator"]
     assert _outcomes(tmp_path / "episodes.csv")[1:] == study

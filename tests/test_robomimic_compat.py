@@ -14,6 +14,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+from helpers.programs import run_program
 from helpers.tiny_dataset import SCOOP_KWARGS, default_controller_config
 
 from veragmil_suite.learning import robomimic_compat, robomimic_scripts
@@ -23,7 +24,6 @@ robomimic_compat.install()
 import robomimic.utils.obs_utils as ObsUtils  # noqa: E402
 from robomimic.envs.env_robosuite import EnvRobosuite  # noqa: E402
 
-BIN = Path(sys.executable).parent
 TASK_KEYS = ("robot0_eef_pos", "robot0_eef_quat", "robot0_joint_pos", "desired_pose", "object")
 
 
@@ -269,14 +269,8 @@ def test_no_prompts_turns_input_into_an_error():
 # ---------------------------------------------------------------------------------------------------------------- #
 
 
-def _run(command, *args):
-    return subprocess.run(
-        [str(BIN / command), *map(str, args)], capture_output=True, text=True, timeout=300, stdin=subprocess.DEVNULL
-    )
-
-
 def test_a_failing_script_exits_nonzero(tmp_path):
-    result = _run("veragmil-robomimic-dataset-info", "--dataset", tmp_path / "missing.hdf5")
+    result = run_program("veragmil-robomimic-dataset-info", "--dataset", tmp_path / "missing.hdf5", check=False)
     assert result.returncode != 0
 
 

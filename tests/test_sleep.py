@@ -6,6 +6,7 @@ import re
 import numpy as np
 import pytest
 from helpers.env import grain_positions, make_env
+from helpers.programs import run_script
 
 from veragmil_suite.devices.expert import ScriptedScooper
 from veragmil_suite.learning.robomimic_obs import model_xml
@@ -147,20 +148,13 @@ def test_sleeping_ceiling_counts_only_the_steps_with_the_whole_pile_awake():
     assert sleeping_ceiling({"rate": 10.0}, {"rate": 20.0, "pile_awake_time": 0.0}) == float("inf")
 
 
-def test_pile_up_bench_times_the_same_steps_with_sleeping_on_and_off(capsys):
+def test_pile_up_bench_times_the_same_steps_with_sleeping_on_and_off():
     """results/awake_pile/bench_pile_up.py (the premise of the ceiling column): one row per seed, with the steps that
     end with the whole pile awake counted and timed in both runs, and a clear error for a food it does not know."""
-    import runpy
-    from pathlib import Path
-
-    script = runpy.run_path(
-        str(Path(__file__).parents[1] / "results" / "awake_pile" / "bench_pile_up.py"), run_name="bench_pile_up"
-    )
-    script["main"](["--foods", "pasta", "--seeds", "1"])
-    row = capsys.readouterr().out.strip().splitlines()[-1].split()
+    script = "results/awake_pile/bench_pile_up.py"
+    row = run_script(script, "--foods", "pasta", "--seeds", "1").stdout.strip().splitlines()[-1].split()
     assert row[:2] == ["pasta", "0"]
     pile_up, times = int(row[3]), [float(cell) for cell in row[4:8]]
     assert pile_up > 0 and all(t > 0 for t in times)
-    with pytest.raises(SystemExit):
-        script["main"](["--foods", "soup"])
-    assert "unknown food(s) soup; accepted foods: rice" in capsys.readouterr().err
+    result = run_script(script, "--foods", "soup", check=False)
+    assert result.returncode == 2 and "unknown food(s) soup; accepted foods: rice" in result.stderr

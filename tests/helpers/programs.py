@@ -1,4 +1,4 @@
-"""Console programs of this package run as a user runs them: a subprocess in a given folder, never on a prompt."""
+"""Console programs and scripts of this checkout run as a user runs them: a subprocess, never on a prompt."""
 
 from __future__ import annotations
 
@@ -8,19 +8,29 @@ import sys
 from pathlib import Path
 
 BIN = Path(sys.executable).parent
+ROOT = Path(__file__).parents[2]
 
 
-def run_program(command: str, *args, cwd, check: bool = True) -> subprocess.CompletedProcess:
-    """Runs ``command`` (a console script of this venv) with ``args``; with ``check``, asserts it succeeded."""
+def _run(argv: list, cwd, check: bool, timeout: float) -> subprocess.CompletedProcess:
     result = subprocess.run(
-        [str(BIN / command), *map(str, args)],
+        [str(a) for a in argv],
         cwd=cwd,
         env=dict(os.environ, MUJOCO_GL="osmesa"),
         stdin=subprocess.DEVNULL,
         capture_output=True,
         text=True,
-        timeout=600,
+        timeout=timeout,
     )
     if check:
         assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-3000:]
     return result
+
+
+def run_program(command: str, *args, cwd=None, check: bool = True, timeout: float = 600) -> subprocess.CompletedProcess:
+    """Runs ``command`` (a console script of this venv) with ``args``; with ``check``, asserts it succeeded."""
+    return _run([BIN / command, *args], cwd, check, timeout)
+
+
+def run_script(path: str, *args, cwd=None, check: bool = True, timeout: float = 600) -> subprocess.CompletedProcess:
+    """Runs the script at ``path`` (relative to the checkout) with this venv's Python, as ``python path args``."""
+    return _run([sys.executable, ROOT / path, *args], cwd, check, timeout)

@@ -4,6 +4,7 @@
     SOLREF=0.04 python ... : the grains' contact time constant (s) set after each reset
     SPOON_SOLREF=0.08 python ... : the spoon's, for its contacts alone
     PROFILE=spacemouse python ... : another operator profile (veragmil_suite.devices.expert.PROFILES)
+    GRAIN_CHANGES='{"rolling_friction_m": 1e-4}' python ... : the food's calibrated GrainModel with these fields
 
 Prints per seed: success, grains and grams in the spoon at the end, grains spilled (outside the bowl's rim), steps,
 control steps a second (resets untimed), and at each phase's start the grains in the spoon / spilled.
@@ -13,16 +14,22 @@ import json
 import os
 import sys
 import time
+from dataclasses import replace
 
 import numpy as np
 
 import veragmil_suite  # noqa: F401
-from veragmil_suite.scripts.bench import make_env
 from veragmil_suite.devices.expert import ScriptedScooper
+from veragmil_suite.models import foods
+from veragmil_suite.scripts.bench import make_env
 
 food, physics = sys.argv[1], sys.argv[2]
 seeds = [int(s) for s in sys.argv[3].split(",")]
 kwargs = json.loads(sys.argv[4]) if len(sys.argv) > 4 else {}
+if os.environ.get("GRAIN_CHANGES"):
+    spec = foods.FOODS[food]
+    changes = json.loads(os.environ["GRAIN_CHANGES"])
+    foods.FOODS[food] = replace(spec, calibrated=replace(spec.calibrated, **changes))
 env = make_env(food, physics=physics, pile_variants=3, **kwargs)
 wins = 0
 for seed in seeds:
