@@ -13,6 +13,7 @@ from veragmil_suite.calibration.slope import slope_travel_m
 from veragmil_suite.calibration.spoonful import dish_volume_m3, level_spoonful_g
 from veragmil_suite.models.dish import DishShape
 from veragmil_suite.models.foods import FOODS, PHYSICS, GrainModel, check_physics
+from veragmil_suite.models.grains import GrainPile
 from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
 
 # Heap angle (degrees) the benchmark's quick lifting-cylinder test of a calibrated food must exceed: Table I's grains
@@ -144,6 +145,20 @@ def test_dish_volume_of_a_cylinder():
     shape = DishShape(rim_semi_axes=(0.02, 0.01), floor_semi_axes=(0.02, 0.01), depth=0.01, wall_half_thickness=0.001,
                       floor_half_thickness=0.001)  # fmt: skip
     assert dish_volume_m3(shape) == pytest.approx(math.pi * 0.02 * 0.01 * 0.01)
+
+
+@pytest.mark.parametrize("physics", PHYSICS)
+@pytest.mark.parametrize("food", ["pasta", "flakes"])
+def test_grains_too_large_for_a_dish_are_stacked_at_its_centre(food, physics):
+    """Pasta and flakes on the spoon once never got a start: no lattice point fitted inside the rim, and the lattice
+    added empty layers for ever (the quick benchmark of pasta ran 35 minutes without an end). Such a dish now takes
+    one grain a layer at its centre, and a level spoonful of them is measured."""
+    pile = GrainPile(FOODS[food], 8, np.random.default_rng(0), physics=physics)
+    qpos = pile.lattice_qpos(SPOON_SHAPE, rim_center=np.zeros(3))
+    assert qpos.shape == (8, 7) and np.allclose(qpos[:, :2], 0.0) and len(np.unique(qpos[:, 2])) == 8
+    if physics == "calibrated":
+        grams, grains = level_spoonful_g(FOODS[food], physics)
+        assert grains > 0 and grams > 0
 
 
 @pytest.mark.parametrize("food", ["rice", "barley"])

@@ -155,6 +155,7 @@ class GrainPile:
         Grains lie with their long axis horizontal and a random heading, so a layer is as thick as a grain
         (not as long): long pasta would otherwise start a metre up and hit the pile hard enough to tunnel. Layers
         span the bowl's cross-section at their height, at most the rim (the sloped walls funnel grains inward).
+        A dish whose rim fits no lattice point (pasta or flakes on a spoon) takes one grain a layer at its centre.
         """
         rng = np.random.default_rng(self._orientation_seed)
         spacing = 2 * self.radii.max() * 1.05
@@ -162,6 +163,7 @@ class GrainPile:
         floor_z = rim_center[2] - bowl.depth
         r_floor, r_rim = min(bowl.floor_semi_axes), min(bowl.rim_semi_axes)
         positions = []
+        empty_at_rim = 0
         z = floor_z + layer_height / 2
         layer = 0
         while len(positions) < self.n_grains:
@@ -169,10 +171,14 @@ class GrainPile:
             radius = r_floor + (r_rim - r_floor) * height / bowl.depth - spacing / 2
             offset = 0.5 * spacing * (layer % 2)
             ticks = np.arange(-radius - offset, radius + spacing, spacing)
+            placed = len(positions)
             for x in ticks:
                 for y in ticks:
                     if np.hypot(x, y) <= radius:
                         positions.append((rim_center[0] + x, rim_center[1] + y, z))
+            empty_at_rim = empty_at_rim + 1 if len(positions) == placed and height >= bowl.depth else 0
+            if empty_at_rim >= 2:  # neither offset of the lattice fits inside the rim, nor will any layer above
+                positions.append((rim_center[0], rim_center[1], z))
             z += layer_height
             layer += 1
         order = rng.permutation(len(positions))[: self.n_grains]
