@@ -18,8 +18,8 @@ from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
 
 # Heap angle (degrees) the benchmark's quick lifting-cylinder test of a calibrated food must exceed: Table I's grains
 # measure 4-8 degrees there, the calibrated ones 15-18 (results/calibration/quick.txt); the published angles are
-# 29.6-40. Pasta and flakes are left to the full benchmark (minutes each), peas to the slope test (the quick tube
-# holds too few peas for a heap).
+# 29.6-40. Pasta has no published angle; flakes' tube fill is not yet a measurement (results/calibration/RUN.md);
+# peas are left to the slope test (the quick tube holds too few peas for a heap).
 QUICK_HEAP_MIN_DEG = {"rice": 12.0, "beans": 15.0}
 
 
