@@ -211,7 +211,7 @@ def test_cli_expert_and_dataset_in_two_processes_write_every_output(tmp_path):
     out = tmp_path / "eval"
     args = ["--agent", "expert", "--agent", f"human=dataset:{dataset}", "--foods", "pasta", "--episodes", 2]
     args += ["--processes", 2, "--output-dir", out, "--horizon", 300, "--env-kwargs", json.dumps(CHEAP)]
-    result = run_program("veragmil-evaluate", *args, "--videos", 1, "--quiet", check=False)
+    result = run_program("veragmil-evaluate", *args, "--videos", 1, "--quiet", check=False, timeout=300)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
     for name in ("episodes.csv", "results.json", "table.md", "table.csv", "success.png", "videos/expert_pasta_0.mp4"):
         assert (out / name).stat().st_size > 0, name
@@ -232,7 +232,7 @@ def test_cli_expert_and_dataset_in_two_processes_write_every_output(tmp_path):
     assert "Table II" in result.stdout and "| pasta |" in result.stdout and "human" in result.stdout
     assert "episodes:" not in result.stderr  # --quiet: no progress bar
     # --resume takes the journaled episodes (a video's episode too, its file being there) and writes the same tables
-    again = run_program("veragmil-evaluate", *args, "--videos", 1, "--quiet", "--resume", check=False)
+    again = run_program("veragmil-evaluate", *args, "--videos", 1, "--quiet", "--resume", check=False, timeout=300)
     assert again.returncode == 0, again.stdout[-3000:] + again.stderr[-3000:]
     assert "skipping 2 evaluation episodes journaled" in again.stdout and "; 0 to run" in again.stdout
     resumed = json.loads((out / "results.json").read_text())

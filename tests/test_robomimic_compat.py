@@ -270,7 +270,9 @@ def test_no_prompts_turns_input_into_an_error():
 
 
 def test_a_failing_script_exits_nonzero(tmp_path):
-    result = run_program("veragmil-robomimic-dataset-info", "--dataset", tmp_path / "missing.hdf5", check=False)
+    result = run_program(
+        "veragmil-robomimic-dataset-info", "--dataset", tmp_path / "missing.hdf5", check=False, timeout=300
+    )
     assert result.returncode != 0
 
 

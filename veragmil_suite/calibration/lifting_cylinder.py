@@ -92,19 +92,43 @@ def _model_xml(pile: GrainPile, radius: float, height: float, physics: str, solv
     return ET.tostring(root, encoding="unicode")
 
 
-def lifting_cylinder(
+@dataclass
+class TubeFill:
+    """The tube filled and settled: the model and state the lift starts from, and the fill's own measure."""
+
+    model: mujoco.MjModel
+    data: mujoco.MjData
+    pile: GrainPile
+    ids: np.ndarray  # the grains' body ids
+    radius_m: float
+    tube_height_m: float  # the tube is as tall as the grains' starting stack
+    fill_height_m: float
+    rested: bool
+    escaped_fast: int
+
+    @property
+    def bulk_volume_m3(self) -> float:
+        return math.pi * self.radius_m**2 * self.fill_height_m
+
+    @property
+    def packing_fraction(self) -> float:
+        return float(self.pile.volumes_m3.sum() / self.bulk_volume_m3)
+
+    @property
+    def bulk_density_g_cm3(self) -> float:
+        return float(self.model.body_mass[self.ids].sum() / self.bulk_volume_m3 / 1000.0)
+
+
+def fill_tube(
     food: FoodSpec,
     physics: str,
     scale: float = 1.0,
     seed: int = 0,
     solver_options: dict | None = None,
     max_settle_s: float = 8.0,
-) -> CylinderResult:
-    """Runs the test for ``food`` built with ``physics`` (its grain model and solver settings) in a tube of
-    ``scale`` times the standard size.
-
-    Sleeping stays off: a grain asleep in the tube would not notice the wall leave.
-    """
+) -> TubeFill:
+    """The test's first half: the tube of ``scale`` times the standard size filled with ``food`` built with
+    ``physics`` and settled (the poured pile's packing and bulk density)."""
     radius, _, n = tube_size(food, physics, scale)
     pile = GrainPile(food, n, np.random.default_rng(seed), physics=physics)
     shape = DishShape(
@@ -122,14 +146,29 @@ def lifting_cylinder(
     adr = np.array([model.joint(j).qposadr[0] for j in pile.joint_names])
     data.qpos[adr[:, None] + np.arange(7)] = lattice
     ids = np.array([model.body(b).id for b in pile.body_names])
-    mass = model.body_mass[ids]
+    rested, fast = run_until_rest(model, data, ids, max_settle_s)
+    fill_height = _fill_height(data.xpos[ids], pile.thickness_radii, radius, 2 * float(pile.radii.mean()))
+    return TubeFill(model, data, pile, ids, radius, tube_height, fill_height, rested, fast)
+
+
+def lifting_cylinder(
+    food: FoodSpec,
+    physics: str,
+    scale: float = 1.0,
+    seed: int = 0,
+    solver_options: dict | None = None,
+    max_settle_s: float = 8.0,
+) -> CylinderResult:
+    """Runs the test for ``food`` built with ``physics`` (its grain model and solver settings) in a tube of
+    ``scale`` times the standard size.
+
+    Sleeping stays off: a grain asleep in the tube would not notice the wall leave.
+    """
+    fill = fill_tube(food, physics, scale, seed, solver_options, max_settle_s)
+    model, data, pile, ids = fill.model, fill.data, fill.pile, fill.ids
     half_thickness = pile.thickness_radii
 
-    rest_fill, fast_fill = run_until_rest(model, data, ids, max_settle_s)
-    fill_height = _fill_height(data.xpos[ids], half_thickness, radius, 2 * float(pile.radii.mean()))
-    bulk_volume = math.pi * radius**2 * fill_height
-
-    lift_to = fill_height + 0.02
+    lift_to = fill.fill_height_m + 0.02
     while data.mocap_pos[0, 2] < lift_to:
         data.mocap_pos[0, 2] += LIFT_SPEED_M_S * model.opt.timestep
         mujoco.mj_step(model, data)
@@ -142,18 +181,18 @@ def lifting_cylinder(
         mujoco.mj_step(model, data, nstep=24)
     height_after = heap_angles(data.xpos[ids], half_thickness, ring_width=ring)[0]
     return CylinderResult(
-        n_grains=n,
-        grain_mass_mg=float(mass.mean() * 1e6),
-        fill_height_m=fill_height,
-        packing_fraction=float(pile.volumes_m3.sum() / bulk_volume),
-        bulk_density_g_cm3=float(mass.sum() / bulk_volume / 1000.0),
+        n_grains=len(ids),
+        grain_mass_mg=float(model.body_mass[ids].mean() * 1e6),
+        fill_height_m=fill.fill_height_m,
+        packing_fraction=fill.packing_fraction,
+        bulk_density_g_cm3=fill.bulk_density_g_cm3,
         heap_height_m=height,
         heap_radius_m=base,
         angle_height_base_deg=angle_hb,
         angle_slope_fit_deg=angle_fit,
         heap_creep_mm_s=(height - height_after) * 1000.0 / (data.time - watch_from),
-        settled=rest_fill and rest_heap,
-        escaped_fast=max(fast_fill, fast_heap),
+        settled=fill.rested and rest_heap,
+        escaped_fast=max(fill.escaped_fast, fast_heap),
         sim_time_s=float(data.time),
     )
 
