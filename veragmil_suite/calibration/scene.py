@@ -29,6 +29,8 @@ def calibration_scene(
     """
     option = {**PHYSICS_SOLVER_OPTIONS[physics], **(solver_options or {})}
     root = ET.Element("mujoco", model=name)
+    # angles in radians, as in robosuite's models (MuJoCo's own default is degrees)
+    ET.SubElement(root, "compiler", angle="radian")
     opt = ET.SubElement(root, "option", timestep=repr(PHYSICS_TIMESTEP_S), **{k: str(v) for k, v in option.items()})
     ET.SubElement(opt, "flag", eulerdamp="disable")  # as in ScoopTask
     world = ET.SubElement(root, "worldbody")

@@ -36,7 +36,7 @@ SETTLE_MIN_S = 0.5  # simulated time always run (grains start in the air)
 SETTLE_MAX_S = 6.0  # give up waiting for rest after this much simulated time
 SETTLE_CHECK_EVERY_S = 0.1
 SETTLE_RETRIES = 3  # times a grain that bounced out of the bowl is dropped back in
-SETTLE_VERSION = "4"  # part of the cache key: bump when settling itself changes
+SETTLE_VERSION = "5"  # part of the cache key: bump when settling, or the lattice it starts from, changes
 
 
 @dataclass

@@ -202,9 +202,11 @@ class GrainPile:
                 out.append(size[0])
             elif g["type"] == "spheres_triangle":
                 out.append(size[0])
-            else:
+            elif len(geoms) == 1:
                 extent = max(float(size[1:].max()), float(np.abs(np.asarray(g["pos"])[2:]).max(initial=0.0)))
-                out.append(extent if len(geoms) == 1 else float(size.max()))
+                out.append(extent)
+            else:  # parts of a bent grain (a flake): each part's reach along the body's z, tilt included
+                out.append(max(_vertical_reach(part) for part in geoms))
         return np.array(out)
 
 
@@ -220,6 +222,16 @@ def _quat_mul(q: np.ndarray, p: np.ndarray) -> np.ndarray:
             w0 * z1 + x0 * y1 - y0 * x1 + z0 * w1,
         ]
     )
+
+
+def _vertical_reach(geom: dict) -> float:
+    """How far above its body's origin an ellipsoid or box part reaches, given its offset and rotation."""
+    size = np.asarray(geom["size"], dtype=float)
+    rotation = np.zeros(9)
+    mujoco.mju_quat2Mat(rotation, np.asarray(geom["quat"], dtype=float))
+    row = np.abs(rotation.reshape(3, 3)[2])  # the part's axes' components along the body's z
+    half = float(np.linalg.norm(row * size)) if geom["type"] == "ellipsoid" else float(row @ size)
+    return abs(float(np.asarray(geom["pos"], dtype=float)[2])) + half
 
 
 def _bounding_radius(geoms: list[dict]) -> float:
