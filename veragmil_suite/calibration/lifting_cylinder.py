@@ -2,7 +2,8 @@
 
 The standard static angle-of-repose test for granular food. Grains are built exactly as the task builds them
 (GrainPile: the food catalog's grain model, mass properties and contact) and run under the task's solver settings;
-only the container differs. The fill before lifting also gives the poured pile's packing fraction and bulk density.
+only the container differs. The fill before lifting also gives the poured pile's packing fraction and bulk density;
+a tall fill is poured in slabs from just above the grains already in the tube, as grains are poured from a scoop.
 
 Angles are measured two ways on the heap's surface profile (the highest grain top in rings about the axis): the
 height over the base radius, and a least-squares slope of the profile's flank (between 20% and 85% of the height).
@@ -59,9 +60,9 @@ TUBE_GRAINS_ACROSS = 3.0  # larger grains get a tube this many grain lengths in 
 TUBE_RADIUS_MAX_M = 0.06  # ...up to this (pasta: a 12 cm tube of 2-3.5 cm pieces)
 TUBE_GRAINS_MAX = 1000  # a tube that would hold more is narrowed until it holds this many (thin flakes)
 FILL_PACKING_GUESS = 0.6
-# A lattice taller than this is poured in slabs this tall, each from just above the fill: a grain then lands at
-# about 2 m/s at most, where a stack metres high (thin flakes: 1,000 grains a few to a layer) landed at 15-22 m/s
-# and tunnelled through the support. Rice's, buckwheat's and peas' standard lattices are lower and fall at once.
+# A lattice taller than this is poured in slabs this tall, each from just above the fill, so no grain lands faster
+# than about 2 m/s: a thin flake falling faster crosses a layer of flakes, or the support, within one step. Rice's,
+# buckwheat's and peas' standard lattices are lower and fall at once; flakes' and pasta's stand metres high.
 POUR_HEIGHT_M = 0.25
 POUR_SLAB_S = 1.0  # simulated time a slab is given to land before the next is poured
 
