@@ -7,41 +7,16 @@ slope test, 2 s and 6 s) and from which angle it rolls when it lies across the s
 
 import argparse
 import math
-import xml.etree.ElementTree as ET
 from dataclasses import replace
 
-import mujoco
 import numpy as np
 
 import veragmil_suite  # noqa: F401
-from veragmil_suite.calibration.scene import calibration_scene
 from veragmil_suite.calibration.slope import slope_travel_m
 from veragmil_suite.models import foods
-from veragmil_suite.models.grains import GrainPile
 
 CREEP_CASES = [("rice", 8.0), ("barley", 8.0), ("buckwheat", 8.0), ("peas", 5.0), ("beans", 8.0), ("pasta", 8.0),
                ("flakes", 8.0)]  # fmt: skip
-
-
-def travel_across_mm(spec: foods.FoodSpec, slope_deg: float, seed: int, along: bool = False) -> float:
-    """Travel (mm) in 2 s after 0.2 s to sink in, the grain's long axis across (or along) the slope."""
-    pile = GrainPile(spec, 1, np.random.default_rng(seed), physics="calibrated")
-    tilt = math.radians(slope_deg)
-    root, world = calibration_scene("slope", "calibrated", tilt_rad=tilt)
-    world.append(pile.bodies()[0])
-    model = mujoco.MjModel.from_xml_string(ET.tostring(root, encoding="unicode"))
-    data = mujoco.MjData(model)
-    adr = model.joint(pile.joint_names[0]).qposadr[0]
-    c = math.cos(math.pi / 4)
-    heading = np.array([1.0, 0.0, 0.0, 0.0]) if along else np.array([c, 0.0, 0.0, c])
-    quat = np.zeros(4)
-    mujoco.mju_mulQuat(quat, np.array([math.cos(-tilt / 2), 0.0, math.sin(-tilt / 2), 0.0]), heading)
-    data.qpos[adr + 3 : adr + 7] = quat
-    data.qpos[adr : adr + 3] = [0.0, 0.0, float(pile.thickness_radii[0]) / math.cos(tilt) + 1e-4]
-    mujoco.mj_step(model, data, nstep=int(round(0.2 / model.opt.timestep)))
-    start = data.qpos[adr : adr + 3].copy()
-    mujoco.mj_step(model, data, nstep=int(round(2.0 / model.opt.timestep)))
-    return float(np.linalg.norm(data.qpos[adr : adr + 3] - start)) * 1000.0
 
 
 parser = argparse.ArgumentParser()
@@ -66,10 +41,10 @@ else:
         for rolling in (float(r) for r in args.rolling.split(",")):
             grain = replace(base.grain("calibrated"), rolling_friction_m=rolling, torsional_friction_m=2 * rolling)
             spec = replace(base, calibrated=grain)
-            cells = [
-                f"{deg}:{np.mean([travel_across_mm(spec, float(deg), s, args.along) for s in (0, 1)]):.1f}"
-                for deg in args.degrees.split(",")
-            ]
+            cells = []
+            for deg in (float(d) for d in args.degrees.split(",")):
+                travel = np.mean([slope_travel_m(spec, "calibrated", deg, seed=s, along=args.along) for s in (0, 1)])
+                cells.append(f"{deg:.0f}:{1000 * travel:.1f}")
             side = "along" if args.along else "across"
             print(
                 f"{food} {side}, rolling {1000 * rolling:.2f} mm: " + " ".join(cells) + " (deg:mm in 2 s)", flush=True
