@@ -22,16 +22,17 @@ EJECTED_SPEED_M_S = 3.0  # faster than any fall in the tests (2 m/s from 20 cm):
 def calibration_scene(
     name: str, physics: str, solver_options: dict | None = None, tilt_rad: float = 0.0
 ) -> tuple[ET.Element, ET.Element]:
-    """The root and worldbody of a model under ``physics``' solver settings (updated by ``solver_options``), with a
+    """The root and worldbody of a model under ``physics``' solver settings and the task's timestep (either updated
+    by ``solver_options``, MuJoCo's ``<option>`` attributes), with a
     support whose top passes through the origin, tilted ``tilt_rad`` about y (downhill is +x).
 
     The support's friction is below every grain's, so a grain's own friction acts (MuJoCo takes the larger).
     """
-    option = {**PHYSICS_SOLVER_OPTIONS[physics], **(solver_options or {})}
+    option = {"timestep": repr(PHYSICS_TIMESTEP_S), **PHYSICS_SOLVER_OPTIONS[physics], **(solver_options or {})}
     root = ET.Element("mujoco", model=name)
     # angles in radians, as in robosuite's models (MuJoCo's own default is degrees)
     ET.SubElement(root, "compiler", angle="radian")
-    opt = ET.SubElement(root, "option", timestep=repr(PHYSICS_TIMESTEP_S), **{k: str(v) for k, v in option.items()})
+    opt = ET.SubElement(root, "option", **{k: str(v) for k, v in option.items()})
     ET.SubElement(opt, "flag", eulerdamp="disable")  # as in ScoopTask
     world = ET.SubElement(root, "worldbody")
     support = ET.SubElement(world, "geom", name="support", type="box", size="0.5 0.5 0.01")

@@ -224,7 +224,7 @@ def episode_settings(env_meta: dict | None, horizon: int | None, env_kwargs: dic
 
 
 def _expert_env(task: EpisodeTask):
-    import veragmil_suite  # noqa: F401
+    import veragmil_suite  # noqa: F401  (registers ScoopGranular in a worker; the package imports this module)
 
     kwargs = _env_kwargs(task, EXPERT_KWARGS)
     kwargs["has_offscreen_renderer"] = bool(task.video_path)
@@ -336,7 +336,7 @@ def driver_piles(tasks: list[EpisodeTask]) -> dict:
     Every pile variant the tasks' environments can draw, settled on this machine (or read from its cache), by
     cache key: Ray workers score their episodes on these, whatever their CPU (settling.use_shipped_piles).
     """
-    import veragmil_suite  # noqa: F401
+    import veragmil_suite  # noqa: F401  (registers ScoopGranular in a worker; the package imports this module)
 
     bases: dict[str, dict] = {}
     built: set[str] = set()

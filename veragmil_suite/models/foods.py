@@ -319,7 +319,10 @@ def get_food(food: str | FoodSpec) -> FoodSpec:
 
 
 # Sources of the reference measurements (short keys, full citations).
-_AOR_RICE = "Applied Engineering in Agriculture, doi:10.13031/aea.13156: piling AoR, long-grain rough rice, 12-21% m.c."
+_AOR_RICE = (
+    "Applied Engineering in Agriculture, doi:10.13031/aea.13156: poured heap of milled rice, the food the catalog's"
+    " bulk density describes (rough rice, in the husk, piles at 29.6-36.9 degrees at 12-21% m.c.)"
+)
 _JOUKI = "Jouki and Khazaei 2012, 'Some physical properties of rice seed'"
 _TAVAKOLI = "Tavakoli et al. 2009, 'Moisture-dependent physical properties of barley grains', IJABE"
 _YALCIN = "Yalcin et al. 2007, 'Physical properties of pea seed', J. Food Engineering 79:731"
@@ -345,7 +348,7 @@ _TABLE1 = {
 
 _REFERENCE = {
     "rice": FoodReference(
-        angle_of_repose_deg=Measured(29.6, 36.9, "deg", _AOR_RICE),
+        angle_of_repose_deg=Measured(26.6, 26.6, "deg", _AOR_RICE),
         bulk_density_g_cm3=Measured(0.78, 0.80, "g/cm3", _SURVEY),
         grain_mass_mg=Measured(20.0, 27.0, "mg", _JOUKI),
         grain_dims_mm=(7.4, 2.75, 2.5),

@@ -50,7 +50,7 @@ def run_expert_episode(
 ) -> dict:
     """One scripted episode of ``food`` with env and expert seeded by ``seed``; returns its metrics."""
     use_headless_rendering()
-    import veragmil_suite  # noqa: F401
+    import veragmil_suite  # noqa: F401  (registers ScoopGranular in a worker; the package imports this module)
 
     kwargs = dict(
         robots=robot, food=food, has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False, seed=seed
