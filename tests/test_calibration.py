@@ -18,6 +18,7 @@ from veragmil_suite.calibration.spoonful import dish_volume_m3, level_spoonful_g
 from veragmil_suite.models.dish import DishShape
 from veragmil_suite.models.foods import FOODS, PHYSICS, GrainModel, check_physics
 from veragmil_suite.models.grains import GrainPile
+from veragmil_suite.models.scoop_task import PHYSICS_TIMESTEP_S
 from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
 
 # Heap angle (degrees) the benchmark's quick lifting-cylinder test of a calibrated food must exceed: Table I's grains
@@ -231,6 +232,26 @@ def test_the_tube_is_round():
         assert data.geom_xmat[g].reshape(3, 3)[:2, 0] == pytest.approx(outward, abs=1e-9)
         inner_face = np.linalg.norm(data.geom_xpos[g, :2]) - model.geom_size[g, 0]
         assert inner_face == pytest.approx(0.021)
+
+
+@pytest.mark.parametrize("physics", PHYSICS)
+@pytest.mark.parametrize("food", sorted(FOODS))
+def test_every_tube_holds_the_standard_fill(food, physics):
+    """A heap is measured in about the standard test's 1,000 grains whatever their size (241 peas heaped three
+    peas high, and their angle scattered by 8 degrees between fills); only the widest tube may hold fewer."""
+    radius, height, grains = lifting_cylinder_module.tube_size(FOODS[food], physics)
+    assert height == pytest.approx(radius * 3.5 / 2.1)
+    assert radius <= lifting_cylinder_module.TUBE_RADIUS_MAX_M * (1 + 1e-12)
+    at_cap = radius == pytest.approx(lifting_cylinder_module.TUBE_RADIUS_MAX_M)
+    assert grains <= lifting_cylinder_module.TUBE_GRAINS
+    assert grains >= 0.99 * lifting_cylinder_module.TUBE_GRAINS or at_cap, (radius, grains)
+
+
+def test_a_calibration_scene_takes_another_step():
+    """Probes trade the step against solver iterations; the task's step is the default."""
+    for options, step in ((None, PHYSICS_TIMESTEP_S), ({"timestep": "0.008"}, 0.008)):
+        root, _ = calibration_scene("step", "calibrated", options)
+        assert mujoco.MjModel.from_xml_string(ET.tostring(root, encoding="unicode")).opt.timestep == step
 
 
 def test_a_tall_fill_is_poured_in_slabs_that_land_softly(monkeypatch):
