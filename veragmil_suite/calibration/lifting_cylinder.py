@@ -71,8 +71,9 @@ def tube_size(food: FoodSpec, physics: str, scale: float = 1.0) -> tuple[float, 
     """Tube radius and fill height (m) and the grains that fill it: the standard test's proportions (2.1 cm by 3.5
     cm), sized to hold its 1,000 grains (at most TUBE_RADIUS_MAX_M), all times ``scale``.
 
-    A heap is measured in grains: peas in the rice tube (241) heap three peas high, and their fitted flank
-    scattered 8.6-14.7 degrees over four fills against 13.2-20.3 in a tube of 1,000 (results/calibration/RUN.md).
+    A heap is measured in grains: peas in the rice tube (241) heap three peas high, and their height over base
+    scattered 12.5-20.9 degrees over four fills against 14.7-17.0 over sixteen in a tube of 1,000
+    (results/calibration/RUN.md).
     """
     grain = food.grain(physics)
     radius = min(max(TUBE_RADIUS_M, TUBE_GRAINS_ACROSS * grain.size_range_m[1]), TUBE_RADIUS_MAX_M)
