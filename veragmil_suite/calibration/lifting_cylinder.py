@@ -81,7 +81,7 @@ def tube_size(food: FoodSpec, physics: str, scale: float = 1.0) -> tuple[float, 
     def grains(r: float) -> float:
         return math.pi * r**2 * (r * 3.5 / 2.1) * FILL_PACKING_GUESS / grain.piece_volume_m3()
 
-    factor = min((TUBE_GRAINS / grains(radius)) ** (1 / 3), max(1.0, TUBE_RADIUS_MAX_M / radius))
+    factor = min((TUBE_GRAINS / grains(radius)) ** (1 / 3), TUBE_RADIUS_MAX_M / radius)
     radius *= factor * scale
     return radius, radius * 3.5 / 2.1, max(20, int(grains(radius)))
 

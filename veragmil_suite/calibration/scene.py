@@ -22,9 +22,9 @@ EJECTED_SPEED_M_S = 3.0  # faster than any fall in the tests (2 m/s from 20 cm):
 def calibration_scene(
     name: str, physics: str, solver_options: dict | None = None, tilt_rad: float = 0.0
 ) -> tuple[ET.Element, ET.Element]:
-    """The root and worldbody of a model under ``physics``' solver settings and the task's timestep (either updated
-    by ``solver_options``, MuJoCo's ``<option>`` attributes), with a
-    support whose top passes through the origin, tilted ``tilt_rad`` about y (downhill is +x).
+    """The root and worldbody of a model under ``physics``' solver settings and the task's timestep (``solver_options``,
+    MuJoCo's ``<option>`` attributes, update either), with a support whose top passes through the origin, tilted
+    ``tilt_rad`` about y (downhill is +x).
 
     The support's friction is below every grain's, so a grain's own friction acts (MuJoCo takes the larger).
     """
