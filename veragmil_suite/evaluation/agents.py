@@ -181,6 +181,8 @@ class EpisodeTask:
 
 
 _POLICIES: dict = {}  # per worker process: checkpoint path -> (RolloutPolicy, checkpoint dict)
+POLICY_DEVICES = ("cpu", "cuda")
+POLICY_DEVICE_ENV = "VERAGMIL_POLICY_DEVICE"  # the torch device checkpoints act on in this process (default cpu)
 
 
 def init_worker() -> None:
@@ -246,7 +248,8 @@ def _policy(path: str):
             robomimic_compat.install()
             import robomimic.utils.file_utils as FileUtils  # heavy: robomimic, imports torch
 
-            _POLICIES[path] = FileUtils.policy_from_checkpoint(ckpt_path=path, device=torch.device("cpu"))
+            device = torch.device(os.environ.get(POLICY_DEVICE_ENV) or "cpu")
+            _POLICIES[path] = FileUtils.policy_from_checkpoint(ckpt_path=path, device=device)
     return _POLICIES[path]
 
 

@@ -14,9 +14,17 @@ settled on this machine.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
-from veragmil_suite.evaluation.agents import ALL_FOODS, DEFAULT_VIDEO_CAMERA, SPEC_HELP, parse_agent_argument
+from veragmil_suite.evaluation.agents import (
+    ALL_FOODS,
+    DEFAULT_VIDEO_CAMERA,
+    POLICY_DEVICE_ENV,
+    POLICY_DEVICES,
+    SPEC_HELP,
+    parse_agent_argument,
+)
 from veragmil_suite.evaluation.evaluate import evaluate
 from veragmil_suite.utils import cli
 from veragmil_suite.utils.cli.handler import UsageError, command
@@ -81,6 +89,12 @@ def build_parser() -> Parser:
         help="take the episodes journaled in OUTPUT_DIR/episodes.jsonl (same agent SPEC, food, seed, horizon and "
         "env kwargs, whatever the agent's name) instead of running them again; without it the journal is replaced",
     )
+    p.add_argument(
+        "--policy-device",
+        choices=POLICY_DEVICES,
+        default="cpu",
+        help="where the checkpoints' networks run in this machine's workers (cuda: each worker on the GPU)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_ray_argument(p, "the episodes")
     return p
@@ -89,6 +103,13 @@ def build_parser() -> Parser:
 @command(build_parser)
 def main(args: argparse.Namespace) -> int:
     check_ray_argument(args)
+    if args.policy_device == "cuda":
+        os.environ["PYTORCH_NVML_BASED_CUDA_CHECK"] = "1"  # asks NVML: this process leaves CUDA to the workers
+        import torch  # heavy: torch, only when asked for the GPU
+
+        if not torch.cuda.is_available():
+            raise UsageError("--policy-device cuda: torch finds no CUDA device here (accepted: cpu, cuda)")
+    os.environ[POLICY_DEVICE_ENV] = args.policy_device  # read by the workers, which start after this
     agents: dict[str, str] = {}
     for text in args.agent:
         name, spec = parse_agent_argument(text)
