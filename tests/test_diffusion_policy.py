@@ -163,6 +163,42 @@ def test_a_checkpoint_round_trip_through_policy_from_checkpoint_gives_the_same_a
     assert not np.allclose(original[0], original[8])  # the second chunk is a new prediction
 
 
+def test_a_gradient_step_reports_robomimics_gradient_norm_and_moves_the_ema_by_its_decay(tmp_path):
+    """The squared gradient norm summed on the device is robomimic's (the sum over weights of their squared norms),
+    and the EMA's fused update is the decay's: shadow - (1 - decay) x (shadow - weight)."""
+    import torch
+
+    robomimic_compat.install()
+    import robomimic.utils.file_utils as FileUtils
+    import robomimic.utils.obs_utils as ObsUtils
+    import robomimic.utils.train_utils as TrainUtils
+    from robomimic.algo import algo_factory
+    from robomimic.config import config_factory
+    from torch.utils.data import DataLoader
+
+    config = config_factory("diffusion_policy")
+    with config.values_unlocked():
+        config.update(_tiny_config(tmp_path, "one_step"))
+    ObsUtils.initialize_obs_utils_with_config(config)
+    shape_meta = FileUtils.get_shape_metadata_from_dataset(str(SAMPLE_DATA), all_obs_keys=config.all_obs_keys)
+    torch.manual_seed(0)
+    model = algo_factory("diffusion_policy", config, shape_meta["all_shapes"], shape_meta["ac_dim"], device="cpu")
+    trainset, _ = TrainUtils.load_data_for_training(config, obs_keys=shape_meta["all_obs_keys"])
+    batch = next(iter(DataLoader(trainset, batch_size=config.train.batch_size, shuffle=True, drop_last=True)))
+    batch = model.postprocess_batch_for_training(model.process_batch_for_training(batch), obs_normalization_stats=None)
+    model.set_train()
+    model.train_on_batch(batch, epoch=1)  # the warm-up's first decay is 0: the EMA starts at the weights
+    shadow_before = [s.clone() for s in model.ema.shadow_params]
+    info = model.train_on_batch(batch, epoch=1)
+    params = list(model.nets.parameters())
+    expected = sum(p.grad.norm(2).pow(2).item() for p in params if p.grad is not None)
+    assert model.log_info(info)["Policy_Grad_Norms"] == pytest.approx(expected, rel=1e-5)
+    decay = model.ema.cur_decay_value
+    assert 0 < decay < 1
+    for before, after, weight in zip(shadow_before, model.ema.shadow_params, params):
+        torch.testing.assert_close(after, before - (1 - decay) * (before - weight.detach()))
+
+
 def test_run_agent_rolls_the_checkpoint_out_in_a_framestacked_env(trained, tmp_path):
     result, checkpoints = trained
     assert result.returncode == 0, result.stderr[-3000:]

@@ -258,6 +258,20 @@ def test_bad_food_or_agent_exits_2_naming_the_accepted_values_and_writes_nothing
     assert not out.exists()
 
 
+def test_a_policy_device_the_machine_lacks_exits_2_naming_the_accepted_values(tmp_path, capsys):
+    import torch
+
+    from veragmil_suite.scripts.evaluate import main
+
+    out = tmp_path / "eval"
+    assert main(["--agent", "expert", "--policy-device", "tpu", "--output-dir", str(out)]) == 2
+    assert "cpu" in capsys.readouterr().err
+    if not torch.cuda.is_available():
+        assert main(["--agent", "expert", "--policy-device", "cuda", "--output-dir", str(out)]) == 2
+        assert "no CUDA device here (accepted: cpu, cuda)" in capsys.readouterr().err
+    assert not out.exists()
+
+
 def test_a_failing_episode_fails_the_run_with_the_workers_traceback():
     with pytest.raises(EvaluationError, match=r"(?s)expert on pasta, episode 0.*Traceback.*no_such_argument"):
         evaluate({"expert": "expert"}, ["pasta"], 1, processes=1, env_kwargs={"no_such_argument": 1}, progress=False)
