@@ -91,7 +91,7 @@ def build_parser() -> Parser:
     )
     p.add_argument(
         "--policy-device",
-        choices=POLICY_DEVICES,
+        type=cli.Choice("policy device", POLICY_DEVICES),
         default="cpu",
         help="where the checkpoints' networks run in this machine's workers (cuda: each worker on the GPU)",
     )
