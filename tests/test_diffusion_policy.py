@@ -39,6 +39,31 @@ def _tiny_config(out_dir: Path, name: str) -> dict:
     return config
 
 
+def _tiny_model(out_dir: Path, name: str):
+    """The tiny config's model built in this process (seed 0), its config, shape metadata and a loader of the sample
+    data."""
+    import torch
+
+    robomimic_compat.install()
+    import robomimic.utils.file_utils as FileUtils
+    import robomimic.utils.obs_utils as ObsUtils
+    import robomimic.utils.train_utils as TrainUtils
+    from robomimic.algo import algo_factory
+    from robomimic.config import config_factory
+    from torch.utils.data import DataLoader
+
+    config = config_factory("diffusion_policy")
+    with config.values_unlocked():
+        config.update(_tiny_config(out_dir, name))
+    ObsUtils.initialize_obs_utils_with_config(config)
+    shape_meta = FileUtils.get_shape_metadata_from_dataset(str(SAMPLE_DATA), all_obs_keys=config.all_obs_keys)
+    torch.manual_seed(0)
+    model = algo_factory("diffusion_policy", config, shape_meta["all_shapes"], shape_meta["ac_dim"], device="cpu")
+    trainset, _ = TrainUtils.load_data_for_training(config, obs_keys=shape_meta["all_obs_keys"])
+    loader = DataLoader(trainset, batch_size=config.train.batch_size, shuffle=True, drop_last=True)
+    return model, config, shape_meta, loader
+
+
 def _epoch_losses(stdout: str) -> list[float]:
     return [float(v) for v in re.findall(r"Train Epoch \d+\n\{\n\s+\"Loss\": ([0-9.e+-]+)", stdout)]
 
@@ -124,21 +149,10 @@ def test_a_checkpoint_round_trip_through_policy_from_checkpoint_gives_the_same_a
 
     robomimic_compat.install()
     import robomimic.utils.file_utils as FileUtils
-    import robomimic.utils.obs_utils as ObsUtils
     import robomimic.utils.train_utils as TrainUtils
-    from robomimic.algo import RolloutPolicy, algo_factory
-    from robomimic.config import config_factory
-    from torch.utils.data import DataLoader
+    from robomimic.algo import RolloutPolicy
 
-    config = config_factory("diffusion_policy")
-    with config.values_unlocked():
-        config.update(_tiny_config(tmp_path, "round_trip"))
-    ObsUtils.initialize_obs_utils_with_config(config)
-    shape_meta = FileUtils.get_shape_metadata_from_dataset(str(SAMPLE_DATA), all_obs_keys=config.all_obs_keys)
-    torch.manual_seed(0)
-    model = algo_factory("diffusion_policy", config, shape_meta["all_shapes"], shape_meta["ac_dim"], device="cpu")
-    trainset, _ = TrainUtils.load_data_for_training(config, obs_keys=shape_meta["all_obs_keys"])
-    loader = DataLoader(trainset, batch_size=config.train.batch_size, shuffle=True, drop_last=True)
+    model, config, shape_meta, loader = _tiny_model(tmp_path, "round_trip")
     TrainUtils.run_epoch(model=model, data_loader=loader, epoch=1, num_steps=5)
     trained = dict(model.nets.named_parameters())
     ema = dict(model._acting_nets().named_parameters())
@@ -168,23 +182,8 @@ def test_a_gradient_step_reports_robomimics_gradient_norm_and_moves_the_ema_by_i
     and the EMA's fused update is the decay's: shadow - (1 - decay) x (shadow - weight)."""
     import torch
 
-    robomimic_compat.install()
-    import robomimic.utils.file_utils as FileUtils
-    import robomimic.utils.obs_utils as ObsUtils
-    import robomimic.utils.train_utils as TrainUtils
-    from robomimic.algo import algo_factory
-    from robomimic.config import config_factory
-    from torch.utils.data import DataLoader
-
-    config = config_factory("diffusion_policy")
-    with config.values_unlocked():
-        config.update(_tiny_config(tmp_path, "one_step"))
-    ObsUtils.initialize_obs_utils_with_config(config)
-    shape_meta = FileUtils.get_shape_metadata_from_dataset(str(SAMPLE_DATA), all_obs_keys=config.all_obs_keys)
-    torch.manual_seed(0)
-    model = algo_factory("diffusion_policy", config, shape_meta["all_shapes"], shape_meta["ac_dim"], device="cpu")
-    trainset, _ = TrainUtils.load_data_for_training(config, obs_keys=shape_meta["all_obs_keys"])
-    batch = next(iter(DataLoader(trainset, batch_size=config.train.batch_size, shuffle=True, drop_last=True)))
+    model, _, _, loader = _tiny_model(tmp_path, "one_step")
+    batch = next(iter(loader))
     batch = model.postprocess_batch_for_training(model.process_batch_for_training(batch), obs_normalization_stats=None)
     model.set_train()
     model.train_on_batch(batch, epoch=1)  # the warm-up's first decay is 0: the EMA starts at the weights
