@@ -178,11 +178,11 @@ class EpisodeTask:
     env_kwargs: dict = field(default_factory=dict)
     video_path: str | None = None
     video_camera: str = DEFAULT_VIDEO_CAMERA
+    policy_device: str = "cpu"
 
 
-_POLICIES: dict = {}  # per worker process: checkpoint path -> (RolloutPolicy, checkpoint dict)
-POLICY_DEVICES = ("cpu", "cuda")
-POLICY_DEVICE_ENV = "VERAGMIL_POLICY_DEVICE"  # the torch device checkpoints act on in this process (default cpu)
+_POLICIES: dict = {}  # per worker process: (checkpoint path, device) -> (RolloutPolicy, checkpoint dict)
+POLICY_DEVICES = ("cpu", "cuda")  # where a worker runs a checkpoint's networks (EpisodeTask.policy_device)
 
 
 def init_worker() -> None:
@@ -237,8 +237,8 @@ def _expert_env(task: EpisodeTask):
     return env, obs, expert.agent, env.step
 
 
-def _policy(path: str):
-    if path not in _POLICIES:
+def _policy(path: str, device: str = "cpu"):
+    if (path, device) not in _POLICIES:
         import torch  # heavy: torch, only when used
 
         torch.set_num_threads(int(os.environ.get("VERAGMIL_TORCH_THREADS", "1")))
@@ -248,9 +248,9 @@ def _policy(path: str):
             robomimic_compat.install()
             import robomimic.utils.file_utils as FileUtils  # heavy: robomimic, imports torch
 
-            device = torch.device(os.environ.get(POLICY_DEVICE_ENV) or "cpu")
-            _POLICIES[path] = FileUtils.policy_from_checkpoint(ckpt_path=path, device=device)
-    return _POLICIES[path]
+            policy = FileUtils.policy_from_checkpoint(ckpt_path=path, device=torch.device(device))
+            _POLICIES[(path, device)] = policy
+    return _POLICIES[(path, device)]
 
 
 def _checkpoint_env(task: EpisodeTask):
@@ -258,7 +258,7 @@ def _checkpoint_env(task: EpisodeTask):
     import robomimic.utils.env_utils as EnvUtils  # heavy: robomimic, imports torch
     import torch  # heavy: torch, only when used
 
-    policy, ckpt = _policy(task.spec.target)
+    policy, ckpt = _policy(task.spec.target, task.policy_device)
     meta = copy.deepcopy(ckpt["env_metadata"])
     meta["env_kwargs"] = _env_kwargs(task, checkpoint_base_kwargs(meta))
     # a multi-food dataset's variants make robomimic's rollouts take its foods in turn at each reset; an evaluated

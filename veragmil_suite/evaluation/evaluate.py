@@ -20,6 +20,7 @@ from veragmil_suite.environments.episode import SUCCESS_HOLD_S
 from veragmil_suite.evaluation.agents import (
     DEFAULT_VIDEO_CAMERA,
     EXPERT_ROBOT,
+    POLICY_DEVICES,
     SPEC_HELP,
     EpisodeRecord,
     EpisodeTask,
@@ -65,6 +66,7 @@ def evaluate(
     say: Callable[[str], None] | None = None,
     ray: str | None = None,
     robot: str | None = None,
+    policy_device: str = "cpu",
 ) -> EvaluationResult:
     """
     Scores each agent (name -> SPEC, see parse_spec) for ``episodes`` episodes per food, env seeds ``seed + i``.
@@ -80,11 +82,11 @@ def evaluate(
 
     Episodes run in ``processes`` worker processes, or with ``ray`` (a cluster's address, or
     distributed.THIS_MACHINE) as Ray tasks of one CPU each, on the piles settled here; either way the journal and
-    the outputs are written here as episodes end.
+    the outputs are written here as episodes end. Their checkpoints' networks run on ``policy_device`` (POLICY_DEVICES).
 
     Raises:
         ValueError: [unknown food, bad agent SPEC, non-positive sizes, videos without output_dir, checkpoints of
-            another robot]
+            another robot, an unknown policy device]
         EvaluationError: [an episode failed in a worker (its traceback in the message)]
     """
     foods = check_foods(list(foods))
@@ -97,6 +99,8 @@ def evaluate(
         raise ValueError(f"horizon must be a positive integer, got {horizon}")
     if videos and output_dir is None:
         raise ValueError("videos need an output_dir to be written to")
+    if policy_device not in POLICY_DEVICES:
+        raise ValueError(f"policy device {policy_device!r}; accepted: {', '.join(POLICY_DEVICES)}")
     metas = {name: env_metadata(spec.target) for name, spec in specs.items() if spec.kind == "checkpoint"}
     robot = _evaluated_robot(metas, robot)
     if robot != EXPERT_ROBOT:
@@ -111,7 +115,9 @@ def evaluate(
                 continue
             for food in foods:
                 video = str(video_dir / video_name(name, food, i)) if i < videos else None
-                task = EpisodeTask(name, spec, food, i, seed + i, horizon, dict(env_kwargs or {}), video, video_camera)
+                task = EpisodeTask(
+                    name, spec, food, i, seed + i, horizon, dict(env_kwargs or {}), video, video_camera, policy_device
+                )
                 tasks.append(task)
     for name, spec in specs.items():
         if spec.kind == "dataset":

@@ -20,7 +20,6 @@ import sys
 from veragmil_suite.evaluation.agents import (
     ALL_FOODS,
     DEFAULT_VIDEO_CAMERA,
-    POLICY_DEVICE_ENV,
     POLICY_DEVICES,
     SPEC_HELP,
     parse_agent_argument,
@@ -109,7 +108,6 @@ def main(args: argparse.Namespace) -> int:
 
         if not torch.cuda.is_available():
             raise UsageError("--policy-device cuda: torch finds no CUDA device here (accepted: cpu, cuda)")
-    os.environ[POLICY_DEVICE_ENV] = args.policy_device  # read by the workers, which start after this
     agents: dict[str, str] = {}
     for text in args.agent:
         name, spec = parse_agent_argument(text)
@@ -147,6 +145,7 @@ def _evaluate(agents: dict[str, str], args: argparse.Namespace):
         ray=args.ray,
         robot=args.robots,
         resume=args.resume,
+        policy_device=args.policy_device,
         say=print,
     )
 
