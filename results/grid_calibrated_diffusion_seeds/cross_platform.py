@@ -24,6 +24,7 @@ print(f"{len(common)} episodes on both: {same} end the same way, {len(common) - 
 print(
     f"successes: {sum(first[k]['success'] for k in common)} first, {sum(second[k]['success'] for k in common)} second"
 )
+# this session's CPU journal: places 47-86 ran while the test suite shared the 2 cores
 for lo, hi in ((0, 47), (47, 87), (87, 10**6)):
     keys = [k for k in common if lo <= second[k]["place"] < hi]
     if keys:
