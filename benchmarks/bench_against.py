@@ -32,7 +32,7 @@ REPO = Path(__file__).resolve().parent.parent
 
 def _first_module(*names: str):
     """The first of ``names`` that imports (a module's place in this checkout, then in older ones)."""
-    import importlib
+    import importlib  # in the child, from that side's checkout
 
     for name in names:
         try:
@@ -44,12 +44,12 @@ def _first_module(*names: str):
 
 def _child(food: str, episodes: int, lift_steps: int, sleep_off: bool, physics: str | None = None) -> dict:
     """One side's figures, in the process of that side's checkout and MuJoCo (only API both sides have)."""
-    import time
+    import time  # in the child, from that side's checkout
 
-    import mujoco
-    import robosuite
+    import mujoco  # in the child, from that side's checkout
+    import robosuite  # in the child, from that side's checkout
 
-    import veragmil_suite
+    import veragmil_suite  # in the child, from that side's checkout
 
     # each module where this checkout keeps it, or where a checkout from before the role folders (#35) did
     expert = _first_module("veragmil_suite.devices.expert", "veragmil_suite.expert")
@@ -130,7 +130,7 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     if not (args.base / "veragmil_suite" / "__init__.py").is_file():
         parser.error(f"--base {args.base} holds no veragmil_suite package (a checkout's top level is expected)")
-    from veragmil_suite.models.foods import FOODS, PHYSICS
+    from veragmil_suite.models.foods import FOODS, PHYSICS  # this checkout's, after --base is checked
 
     if args.physics is not None and args.physics not in PHYSICS:
         parser.error(f"unknown physics {args.physics!r}; accepted physics: {', '.join(PHYSICS)}")

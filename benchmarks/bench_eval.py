@@ -27,7 +27,7 @@ SECONDS_PER_MINUTE = 60.0
 
 def bench(spec: str, food: str, episodes: int, processes: int, horizon: int, seed: int) -> dict:
     """Runs ``episodes`` episodes of one agent on ``food`` in ``processes`` workers; returns the rates."""
-    from veragmil_suite.evaluation.evaluate import evaluate
+    from veragmil_suite.evaluation.evaluate import evaluate  # the package's evaluation imports torch: only to run
 
     with stopwatch() as elapsed:
         result = evaluate(

@@ -37,10 +37,10 @@ CASES = (("ddim", 10, 8), ("ddim", 5, 8), ("ddpm", 100, 8), ("ddim", 10, 1))
 
 def _config(checkpoint: str | None):
     """The config of the checkpoint, or of configs/json/diffusion_policy.json on the sample data."""
-    from robomimic.config import config_factory
+    from robomimic.config import config_factory  # robomimic: after robomimic_compat.install()
 
     if checkpoint is not None:
-        import robomimic.utils.file_utils as FileUtils
+        import robomimic.utils.file_utils as FileUtils  # robomimic: after robomimic_compat.install()
 
         ckpt = FileUtils.load_dict_from_checkpoint(checkpoint)
         config, _ = FileUtils.config_from_checkpoint(ckpt_dict=ckpt)
@@ -54,11 +54,11 @@ def _config(checkpoint: str | None):
 
 def bench_case(config, ckpt, scheduler: str, denoising_steps: int, chunk: int, steps: int) -> dict:
     """Times ``steps`` control steps (after one warm-up prediction) of one case; returns its rates."""
-    import h5py
-    import numpy as np
-    import robomimic.utils.file_utils as FileUtils
-    import robomimic.utils.obs_utils as ObsUtils
-    from robomimic.algo import RolloutPolicy, algo_factory
+    import h5py  # with robomimic, after robomimic_compat.install()
+    import numpy as np  # with robomimic, after robomimic_compat.install()
+    import robomimic.utils.file_utils as FileUtils  # robomimic: after robomimic_compat.install()
+    import robomimic.utils.obs_utils as ObsUtils  # robomimic: after robomimic_compat.install()
+    from robomimic.algo import RolloutPolicy, algo_factory  # robomimic: after robomimic_compat.install()
 
     config = type(config)(dict_to_load=json.loads(config.dump()))
     with config.values_unlocked():
@@ -106,10 +106,10 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--threads", type=int, nargs="+", default=[1, 2], help="torch thread counts")
     args = parser.parse_args(argv)
 
-    from veragmil_suite.learning import robomimic_compat
+    from veragmil_suite.learning import robomimic_compat  # the package imports robosuite: after MUJOCO_GL
 
     robomimic_compat.install()
-    import torch
+    import torch  # heavy: torch, after robomimic_compat.install()
 
     config, ckpt = _config(args.checkpoint)
     load_before = os.getloadavg()[0]

@@ -29,6 +29,13 @@ from pathlib import Path
 os.environ["MUJOCO_GL"] = os.environ["PYOPENGL_PLATFORM"] = "osmesa"
 os.environ.setdefault("PYNPUT_BACKEND", "dummy")
 
+# the package imports robosuite: after MUJOCO_GL
+from veragmil_suite.evaluation.evaluate import evaluate  # noqa: E402
+from veragmil_suite.study.logged_run import console  # noqa: E402
+from veragmil_suite.study.training import train_piece, training_config, training_resources  # noqa: E402
+from veragmil_suite.utils.distributed import THIS_MACHINE, ray_session, run_pieces  # noqa: E402
+from veragmil_suite.utils.timing import stopwatch  # noqa: E402
+
 FOOD = "pasta"
 N_GRAINS = 12
 HORIZON = 250
@@ -51,12 +58,6 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--steps", type=int, default=10, help="gradient steps of the training run")
     p.add_argument("--repeats", type=int, default=2, help="measurements of each side (the fastest is kept)")
     args = p.parse_args(argv)
-
-    from veragmil_suite.evaluation.evaluate import evaluate
-    from veragmil_suite.study.logged_run import console
-    from veragmil_suite.study.training import train_piece, training_config, training_resources
-    from veragmil_suite.utils.distributed import THIS_MACHINE, ray_session, run_pieces
-    from veragmil_suite.utils.timing import stopwatch
 
     print(f"load average before: {_load()}", flush=True)
     work = Path(tempfile.mkdtemp(prefix="bench_ray_"))

@@ -41,11 +41,11 @@ from veragmil_suite.utils.timing import stopwatch  # noqa: E402  (the package im
 
 def bench_algo(name: str, dataset: str, steps: int, device: str = "cpu") -> dict:
     """Times ``steps`` gradient steps of config ``name`` on ``dataset`` (after 2 warm-up steps) on torch ``device``."""
-    import torch
-    from robomimic.algo import algo_factory
-    from robomimic.config import config_factory
-    from robomimic.utils import file_utils, obs_utils, train_utils
-    from torch.utils.data import DataLoader
+    import torch  # heavy: torch, after robomimic_compat.install()
+    from robomimic.algo import algo_factory  # robomimic: after robomimic_compat.install()
+    from robomimic.config import config_factory  # robomimic: after robomimic_compat.install()
+    from robomimic.utils import file_utils, obs_utils, train_utils  # robomimic: after robomimic_compat.install()
+    from torch.utils.data import DataLoader  # heavy: torch, after robomimic_compat.install()
 
     with open(CONFIG_DIR / f"{name}.json") as f:
         ours = json.load(f)
@@ -109,15 +109,15 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--device", default="cpu", help="torch device the networks train on (cpu, cuda)")
     args = parser.parse_args(argv)
 
-    from veragmil_suite.learning import robomimic_compat
+    from veragmil_suite.learning import robomimic_compat  # the package imports robosuite: after MUJOCO_GL
 
     robomimic_compat.install()
-    import torch
+    import torch  # heavy: torch, after robomimic_compat.install()
 
     dataset = args.dataset
     if dataset is None:
         sys.path.insert(0, str(ROOT / "tests"))
-        from helpers.tiny_dataset import record_tiny_dataset
+        from helpers.tiny_dataset import record_tiny_dataset  # tests/ is put on the path just above
 
         dataset = os.path.join(tempfile.mkdtemp(prefix="bench_training_"), "scoop.hdf5")
         started = time.perf_counter()
@@ -158,14 +158,14 @@ def main(argv: list[str] | None = None) -> None:
 
 def _device_name(device: str) -> str:
     """The device the networks trained on, as a reader names it."""
-    import torch
+    import torch  # heavy: torch, after robomimic_compat.install()
 
     return torch.cuda.get_device_name(torch.device(device)) if device.startswith("cuda") else "CPU"
 
 
 def _version(package: str) -> str:
     """The installed version; a package put on the path without metadata (a copied folder) gives its __version__."""
-    from importlib.metadata import PackageNotFoundError, version
+    from importlib.metadata import PackageNotFoundError, version  # only where a version is printed
 
     try:
         return version(package)

@@ -103,7 +103,7 @@ def bench_render() -> None:
 
 def _flood(url: str, n: int, out) -> None:
     """Child process: send n pose messages as fast as the socket takes them."""
-    import aiohttp
+    import aiohttp  # in the child process that uses it
 
     async def run():
         msgs = [pose_message(i, float(i), right=controller(squeeze=0.0)) for i in range(n)]
@@ -269,8 +269,8 @@ def _hand_client(url: str, trials: int, seed: int, out) -> None:
     """Child process, the page's part: sends the right hand at 90 Hz with the grip held, moves it MOVE_M back or
     forth every MOVE_EVERY_S, and stamps each move's first message; stamps every frame on arrival and decodes it as
     the page would. Puts (moves [(seq, t_sent)], frames [(t_received, timing, decode_ms)]) on out."""
-    import aiohttp
-    from PIL import Image
+    import aiohttp  # in the child process that uses it
+    from PIL import Image  # in the child process that uses it
 
     rng = random.Random(seed)
 

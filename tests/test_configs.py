@@ -159,11 +159,11 @@ def test_observation_keys_are_what_scoopgranular_gives():
 
 
 def test_every_registered_algorithm_has_its_config_and_a_name_registers_once():
-    from veragmil_suite.learning.algorithms import ALGORITHMS, register_algorithm
+    from veragmil_suite.learning.algorithms import ALGORITHMS, StudyAlgorithm, register_algorithm
 
     assert {"bc", "bc_rnn", "bcq", "diffusion_policy"} <= set(ALGORITHMS)
     for algorithm in ALGORITHMS.values():
         config = json.loads((CONFIG_DIR / f"{algorithm.config}.json").read_text())
         assert config["algo_name"] in (algorithm.name, "bc")  # BC-RNN trains robomimic's bc with its RNN on
     with pytest.raises(ValueError, match="registered already"):
-        register_algorithm("bc", "bc", "BC again")
+        register_algorithm(StudyAlgorithm("bc", "bc", "BC again"))

@@ -141,11 +141,21 @@ def test_a_registered_profile_is_an_operator_and_a_name_registers_once():
     from veragmil_suite.utils import cli
 
     assert cli.profile("expert") == "expert"  # a parser used before the profile is registered takes it after
-    profile = register_profile(OperatorProfile("test-slow", speed=0.5))
+    profile = register_profile(OperatorProfile("test-slow", speed=0.5))  # called with a profile, as a plugin may
     try:
         assert get_profile("test-slow") is profile
         assert cli.profile("test-slow") == "test-slow"  # --profile takes it
         with pytest.raises(ValueError, match="registered already"):
             register_profile(OperatorProfile("test-slow"))
+
+        @register_profile
+        def test_fast() -> OperatorProfile:
+            """Registered by decorator, as the package's own profiles are."""
+            return OperatorProfile("test-fast", speed=2.0)
+
+        assert callable(test_fast) and get_profile("test-fast").speed == 2.0
+        with pytest.raises(TypeError, match="must give an entry of type OperatorProfile"):
+            register_profile(lambda: "test-none")
     finally:
-        del PROFILES["test-slow"]
+        PROFILES.pop("test-slow", None)
+        PROFILES.pop("test-fast", None)

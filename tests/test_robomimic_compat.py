@@ -71,7 +71,13 @@ def test_torchvision_ops_are_defined_only_when_its_import_failed():
 def test_install_is_idempotent():
     robomimic_compat.install()
     robomimic_compat.install()
-    assert EnvRobosuite.get_state is robomimic_compat._env_get_state
+    from robomimic.envs.env_base import EnvType
+    from robomimic.utils import env_utils
+
+    from veragmil_suite.learning.env_robosuite import EnvRobosuite15
+
+    assert EnvRobosuite is EnvRobosuite15  # bound where robomimic looks its robosuite env class up
+    assert env_utils.get_env_class(env_type=EnvType.ROBOSUITE_TYPE) is EnvRobosuite15
 
 
 # ---------------------------------------------------------------------------------------------------------------- #

@@ -75,10 +75,10 @@ def main() -> None:
     recorded = time.time() - started
     print(f"recorded {len(files)} x {args.demos_per_food} demos with overhead RGB-D in {recorded:.0f} s", flush=True)
 
-    from veragmil_suite.learning.algorithms import register_algorithm
+    from veragmil_suite.learning.algorithms import StudyAlgorithm, register_algorithm
     from veragmil_suite.study.training import training_config
 
-    register_algorithm(args.config, args.config, "BC-RNN RGB-D")
+    register_algorithm(StudyAlgorithm(args.config, args.config, "BC-RNN RGB-D"))
     config = training_config(args.config, dataset, work / "runs", "rgbd", 100000, args.steps_per_epoch)
     config["experiment"]["save"]["every_n_epochs"] = 1
     config["experiment"]["logging"]["log_tb"] = False  # tensorboardX is not on the machine

@@ -20,6 +20,7 @@ import robosuite.utils.transform_utils as T
 from veragmil_suite.controllers.scoop_config import osc_speed_per_offset
 from veragmil_suite.environments.start_pose import POST_SCOOP_EEF_ROT, PRE_SCOOP_EEF_ROT
 from veragmil_suite.utils.kinematics import align_heading
+from veragmil_suite.utils.registry import Registry
 
 # While lifting and carrying, the spoon's tip is raised a little past level, as people do, so the load rests against
 # the back of the spoon's bowl instead of sliding off its tip.
@@ -79,30 +80,50 @@ class OperatorProfile:
     injected_noise_time_s: float = 0.3
 
 
-PROFILES: dict[str, OperatorProfile] = {}
+PROFILES: Registry[OperatorProfile] = Registry("operator profile", OperatorProfile)
+# --profile, veragmil-study's --profiles and the expert:<profile> agents take every registered profile
+register_profile = PROFILES.register
 
 
-def register_profile(profile: OperatorProfile) -> OperatorProfile:
-    """Adds an operator profile under its name (a name registered twice is refused): --profile, veragmil-study's
-    --profiles and the expert:<profile> agents take every registered one."""
-    if profile.name in PROFILES:
-        raise ValueError(f"operator profile {profile.name!r} is registered already")
-    PROFILES[profile.name] = profile
-    return profile
+@register_profile
+def expert() -> OperatorProfile:
+    """The scripted expert: smooth, noise-free, at the plan's speeds."""
+    return OperatorProfile("expert")
 
 
-register_profile(OperatorProfile("expert"))
-register_profile(OperatorProfile("careful", speed=0.7, pos_noise=0.002, rot_noise=0.01))
-register_profile(
-    OperatorProfile("hasty", speed=1.4, pos_noise=0.006, rot_noise=0.03, plan_jitter_m=0.004, max_accel=1.2)
-)
-register_profile(OperatorProfile("noisy", pos_noise=0.008, rot_noise=0.04, plan_jitter_m=0.004))
-# the expert executing noisy actions while its own are recorded (noise injection, DART). MuJoCo 3.8.1, stiff
-# OSC_POSE, 10 seeds per training food: at 0.05 it succeeds 80-100% (pasta 80%, the expert 90%), 2 s slower;
-# at 0.1 it spills on the carry and cannot hold still (pasta 12%, buckwheat 38%), even with the hold noise-free
-register_profile(OperatorProfile("expert-dart", injected_noise=0.05))
-register_profile(
-    OperatorProfile(
+@register_profile
+def careful() -> OperatorProfile:
+    """A slower, steadier hand than the expert's."""
+    return OperatorProfile("careful", speed=0.7, pos_noise=0.002, rot_noise=0.01)
+
+
+@register_profile
+def hasty() -> OperatorProfile:
+    """A faster, rougher hand, with twice the expert's waypoint jitter and acceleration."""
+    return OperatorProfile("hasty", speed=1.4, pos_noise=0.006, rot_noise=0.03, plan_jitter_m=0.004, max_accel=1.2)
+
+
+@register_profile
+def noisy() -> OperatorProfile:
+    """The expert's speed with a drifting hand."""
+    return OperatorProfile("noisy", pos_noise=0.008, rot_noise=0.04, plan_jitter_m=0.004)
+
+
+@register_profile
+def expert_dart() -> OperatorProfile:
+    """The expert executing noisy actions while its own are recorded (noise injection, DART).
+
+    MuJoCo 3.8.1, stiff OSC_POSE, 10 seeds per training food: at 0.05 it succeeds 80-100% (pasta 80%, the expert
+    90%), 2 s slower; at 0.1 it spills on the carry and cannot hold still (pasta 12%, buckwheat 38%), even with the
+    hold noise-free.
+    """
+    return OperatorProfile("expert-dart", injected_noise=0.05)
+
+
+@register_profile
+def spacemouse() -> OperatorProfile:
+    """3D-mouse teleoperation: one axis at a time, four deflection levels, jerky input (see OperatorProfile)."""
+    return OperatorProfile(
         "spacemouse",
         speed=1.6,
         pos_noise=0.004,
@@ -118,7 +139,6 @@ register_profile(
         phase_time_scale=1.5,
         let_go_tol_m=0.01,
     )
-)
 
 
 @dataclass(frozen=True)

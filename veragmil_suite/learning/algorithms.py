@@ -1,10 +1,12 @@
 """The algorithms a study trains, registered by name: each one's robomimic config (configs/json) and its column
 name in the tables. The paper's three and our Diffusion Policy (veragmil_suite.learning.algos) are registered here;
-another robomimic algorithm joins the grid with one register_algorithm call."""
+another robomimic algorithm joins the grid with a function decorated by register_algorithm."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+
+from veragmil_suite.utils.registry import Registry
 
 
 @dataclass(frozen=True)
@@ -22,20 +24,35 @@ class StudyAlgorithm:
     label: str
 
 
-ALGORITHMS: dict[str, StudyAlgorithm] = {}
+ALGORITHMS: Registry[StudyAlgorithm] = Registry("algorithm", StudyAlgorithm)
+register_algorithm = ALGORITHMS.register
 
 
-def register_algorithm(name: str, config: str, label: str) -> StudyAlgorithm:
-    """Adds an algorithm to the grid (a name registered twice is refused)."""
-    if name in ALGORITHMS:
-        raise ValueError(f"algorithm {name!r} is registered already")
-    ALGORITHMS[name] = StudyAlgorithm(name, config, label)
-    return ALGORITHMS[name]
+@register_algorithm
+def bc() -> StudyAlgorithm:
+    """robomimic's BC: an MLP from observations to actions."""
+    return StudyAlgorithm("bc", "bc", "BC")
 
 
-register_algorithm("bc", "bc", "BC")
-register_algorithm("bc_rnn", "bc_rnn", "BC-RNN")
-# robomimic's paper preset of BC-RNN for human demonstrations: a 5-mode GMM head straight on the LSTM
-register_algorithm("bc_rnn_gmm", "bc_rnn_gmm", "BC-RNN GMM")
-register_algorithm("bcq", "bcq", "BCQ")
-register_algorithm("diffusion_policy", "diffusion_policy", "Diffusion Policy")
+@register_algorithm
+def bc_rnn() -> StudyAlgorithm:
+    """robomimic's BC with its LSTM on, trained on sequences."""
+    return StudyAlgorithm("bc_rnn", "bc_rnn", "BC-RNN")
+
+
+@register_algorithm
+def bc_rnn_gmm() -> StudyAlgorithm:
+    """robomimic's paper preset of BC-RNN for human demonstrations: a 5-mode GMM head straight on the LSTM."""
+    return StudyAlgorithm("bc_rnn_gmm", "bc_rnn_gmm", "BC-RNN GMM")
+
+
+@register_algorithm
+def bcq() -> StudyAlgorithm:
+    """robomimic's BCQ: batch-constrained Q-learning on the demos' rewards."""
+    return StudyAlgorithm("bcq", "bcq", "BCQ")
+
+
+@register_algorithm
+def diffusion_policy() -> StudyAlgorithm:
+    """Diffusion Policy (veragmil_suite.learning.algos), a robomimic algorithm of ours."""
+    return StudyAlgorithm("diffusion_policy", "diffusion_policy", "Diffusion Policy")
