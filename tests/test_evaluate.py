@@ -176,6 +176,35 @@ def test_a_journaled_episode_reads_back_and_is_journaled_the_same_way(tmp_path):
     assert Journal(path, resume=False).records == {} and not path.exists()  # a fresh run starts a new journal
 
 
+def test_a_journal_of_another_platform_is_set_aside_not_resumed(tmp_path):
+    """The same episodes can end otherwise on another CPU or torch: resuming there keeps the journal, unused."""
+    path = tmp_path / JOURNAL_NAME
+    path.write_text(JOURNAL_LINE + "\n")
+    task = EpisodeTask("renamed", parse_spec("expert"), "pasta", 3, 0, 80, {"n_grains": 12, "pile_variants": 1})
+    assert Journal(path, resume=True).get(task) is not None  # no platform beside it: written here
+    here = json.loads((tmp_path / f"{JOURNAL_NAME}.platform.json").read_text())
+    assert {"cpu", "python", "mujoco", "torch", "numpy"} <= set(here)
+    elsewhere = dict(here, torch="2.11.0+cu130")
+    (tmp_path / f"{JOURNAL_NAME}.platform.json").write_text(json.dumps(elsewhere))
+    journal = Journal(path, resume=True)
+    assert journal.get(task) is None and not path.exists()
+    aside, written_on = journal.set_aside
+    assert written_on == elsewhere and aside.read_text() == JOURNAL_LINE + "\n"
+    assert json.loads(Path(f"{aside}.platform.json").read_text()) == elsewhere
+    assert "torch 2.11.0+cu130 (here " in journal.describe_set_aside()
+    assert json.loads((tmp_path / f"{JOURNAL_NAME}.platform.json").read_text()) == here
+    # a second journal of that platform set aside keeps the first
+    path.write_text(JOURNAL_LINE + "\n")
+    (tmp_path / f"{JOURNAL_NAME}.platform.json").write_text(json.dumps(elsewhere))
+    assert Journal(path, resume=True).set_aside[0] != aside and aside.is_file()
+
+
+def test_an_episode_on_the_gpu_is_journaled_apart_from_the_cpus():
+    task = EpisodeTask("a", parse_spec("expert"), "pasta", 0, 0, 80, {})
+    assert Journal.key(task) != Journal.key(replace(task, policy_device="cuda"))
+    assert Journal.key(task) == Journal.key(replace(task, agent="b"))
+
+
 def test_agent_arguments_name_and_check_specs(tmp_path):
     checkpoint = tmp_path / "model_epoch_5.pth"
     checkpoint.write_bytes(b"")

@@ -8,10 +8,11 @@ it ran. Each record is journaled as it arrives, so a killed evaluation resumes w
 from __future__ import annotations
 
 import contextlib
+import hashlib
+import itertools
 import json
 from collections.abc import Callable
 from dataclasses import replace
-from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 from tqdm import tqdm
@@ -38,16 +39,7 @@ from veragmil_suite.evaluation.reporting import EvaluationResult, json_safe, vid
 from veragmil_suite.models.humanoid import check_robot
 from veragmil_suite.utils.canonical import canonical
 from veragmil_suite.utils.distributed import Resources, WorkerLost, ray_session, run_pieces
-
-
-def _versions() -> dict[str, str]:
-    out = {}
-    for package in ("veragmil_suite", "robosuite", "robomimic", "mujoco", "torch", "numpy"):
-        try:
-            out[package] = version(package)
-        except PackageNotFoundError:
-            out[package] = "not installed"
-    return out
+from veragmil_suite.utils.host import outcome_platform, versions
 
 
 def evaluate(
@@ -123,6 +115,8 @@ def evaluate(
         if spec.kind == "dataset":
             records += dataset_episodes(name, spec.target, foods)
     journal = Journal(Path(output_dir) / JOURNAL_NAME, resume) if output_dir is not None else None
+    if journal is not None and journal.set_aside is not None and say is not None:
+        say(journal.describe_set_aside())
     if journal is not None and resume:
         done = [(t, journal.get(t)) for t in tasks]
         reused = [replace(record, agent=t.agent) for t, record in done if record is not None]
@@ -151,7 +145,7 @@ def evaluate(
         robot=robot,
         success_hold_s=SUCCESS_HOLD_S,
         episodes_run=episodes_run,
-        versions=_versions(),
+        versions=versions(),
     )
     result = EvaluationResult(records, list(specs), foods, config)
     if output_dir is not None:
@@ -201,27 +195,73 @@ JOURNAL_NAME = "episodes.jsonl"
 
 
 class Journal:
-    """Finished episodes, one JSON line each, keyed by what decides their outcome (not the agent's name)."""
+    """Finished episodes, one JSON line each, keyed by what decides their outcome (not the agent's name).
+
+    The platform that scored them (veragmil_suite.utils.host.outcome_platform) is kept beside the journal
+    (<journal>.platform.json): resuming on another platform sets the journal aside under a name of its own (its
+    episodes can end otherwise here) and starts a new one. A journal without it is taken as this machine's.
+    """
 
     def __init__(self, path: Path, resume: bool):
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.records: dict[str, EpisodeRecord] = {}
+        self.platform = outcome_platform()
+        self.set_aside: tuple[Path, dict] | None = None  # (where, the platform that wrote it)
         if resume and self.path.exists():
-            for line in self.path.read_text().splitlines():
-                try:
-                    entry = json.loads(line)
-                except ValueError:
-                    continue  # the last line of a killed run
-                self.records[entry["key"]] = EpisodeRecord.from_dict(entry["record"])
+            written_on = self._written_on()
+            if written_on != self.platform:
+                self.set_aside = (self._move_aside(written_on), written_on)
+            else:
+                self._read()
         elif self.path.exists():
             self.path.unlink()
+        self._platform_path(self.path).write_text(json.dumps(self.platform, sort_keys=True) + "\n")
+
+    @staticmethod
+    def _platform_path(path: Path) -> Path:
+        return path.with_name(path.name + ".platform.json")
+
+    def _written_on(self) -> dict:
+        platform_path = self._platform_path(self.path)
+        if not platform_path.is_file():
+            return self.platform
+        try:
+            return json.loads(platform_path.read_text())
+        except ValueError:
+            return {"platform": "unreadable"}
+
+    def _move_aside(self, written_on: dict) -> Path:
+        tag = hashlib.sha1(canonical(written_on).encode()).hexdigest()[:8]
+        names = (f"{self.path.stem}.{tag}{f'.{n}' if n else ''}{self.path.suffix}" for n in itertools.count())
+        aside = next(p for p in map(self.path.with_name, names) if not p.exists())
+        self.path.rename(aside)
+        self._platform_path(aside).write_text(json.dumps(written_on, sort_keys=True) + "\n")
+        return aside
+
+    def _read(self) -> None:
+        for line in self.path.read_text().splitlines():
+            try:
+                entry = json.loads(line)
+            except ValueError:
+                continue  # the last line of a killed run
+            self.records[entry["key"]] = EpisodeRecord.from_dict(entry["record"])
+
+    def describe_set_aside(self) -> str:
+        """One line on a journal set aside: where it went and how its platform differs from this one."""
+        aside, written_on = self.set_aside
+        differs = ", ".join(
+            f"{k} {written_on.get(k, 'unknown')} (here {v})" for k, v in self.platform.items() if written_on.get(k) != v
+        )
+        return f"{self.path} was scored on another platform ({differs}): kept as {aside}, not resumed"
 
     @staticmethod
     def key(task: EpisodeTask) -> str:
         parts = [task.spec.kind, task.spec.target, task.food, task.seed, task.horizon, task.env_kwargs]
         if task.video_path:
             parts += [task.video_path, task.video_camera]
+        if task.policy_device != "cpu":
+            parts += [task.policy_device]
         return canonical(parts)
 
     def get(self, task: EpisodeTask) -> EpisodeRecord | None:

@@ -5,10 +5,10 @@ command regenerates them."""
 from __future__ import annotations
 
 import json
-import os
-import platform
 import shutil
 from pathlib import Path
+
+from veragmil_suite.utils.host import host
 
 # what a study's eval/ folder holds that results/ keeps
 EVAL_FILES = (
@@ -30,19 +30,6 @@ EVAL_FILES = (
     "seeds/stages.csv",
     "seeds/success.png",
 )
-
-
-def host() -> dict:
-    """The CPU model, core count and OS of this machine."""
-    model = platform.processor() or "unknown"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return dict(cpu=model, cores=os.cpu_count(), os=platform.platform(), python=platform.python_version())
 
 
 def own_timings(timings: dict[str, float], agents: dict[str, str]) -> dict[str, float]:
