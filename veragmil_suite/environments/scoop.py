@@ -21,7 +21,7 @@ from veragmil_suite.controllers.scoop_config import (
 from veragmil_suite.environments.pile_variants import PileVariantsMixin
 from veragmil_suite.environments.settling import settle
 from veragmil_suite.environments.start_pose import StartPoseMixin
-from veragmil_suite.environments.task_state import M3_PER_CM3, TaskStateMixin, instability_warnings
+from veragmil_suite.environments.task_state import M3_PER_CM3, TaskStateMixin, check_spill_limit, instability_warnings
 from veragmil_suite.models.arena import ScoopArena
 from veragmil_suite.models.bowl import DEFAULT_BOWL_SHAPE, Bowl
 from veragmil_suite.models.dish import DishShape
@@ -90,6 +90,8 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
             (by volume: 5% is ~10 grains of rice, 2 pieces of pasta)
         min_portion_cm3 (None or float): an absolute portion (cm^3) instead of min_portion_fraction
         max_spill_fraction (float): spilled volume must stay under this fraction of the volume scooped
+        spill_limit_of (str): what max_spill_fraction is a fraction of: "scooped" (the volume lifted out of the
+            bowl) or "bowl" (all the food in the bowl)
         table_full_size (3-tuple): x, y, and z dimensions of the table
         use_camera_obs (bool): if True, every observation includes rendered image(s)
         use_object_obs (bool): if True, include task information (desired pose, bowl, spoon load) in the
@@ -140,6 +142,7 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
         min_portion_fraction=0.05,
         min_portion_cm3=None,
         max_spill_fraction=0.05,
+        spill_limit_of="scooped",
         table_full_size=(0.8, 0.8, 0.05),
         use_camera_obs=True,
         use_object_obs=True,
@@ -219,6 +222,7 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
         self.min_portion_fraction = min_portion_fraction
         self.min_portion_cm3 = min_portion_cm3
         self.max_spill_fraction = max_spill_fraction
+        self.spill_limit_of = check_spill_limit(spill_limit_of)
         self.fast_rendering = fast_rendering
         self.sleep_tolerance = check_sleep_tolerance(sleep_tolerance)
         self.physics_solver_options = physics_solver_options

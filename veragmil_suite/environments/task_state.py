@@ -12,6 +12,18 @@ from veragmil_suite.environments.start_pose import POST_SCOOP_EEF_ROT
 from veragmil_suite.models.humanoid import SPOON_ARM
 from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
 
+# what the success rule's spill limit is a fraction of: the volume lifted out of the bowl, or all the food in the
+# bowl (the paper's "less than 5% of the total volume spilled" read literally)
+SPILL_LIMIT_REFERENCES = ("scooped", "bowl")
+
+
+def check_spill_limit(spill_limit_of: str) -> str:
+    """ScoopGranular's spill_limit_of, checked (a ValueError names the accepted values)."""
+    if spill_limit_of not in SPILL_LIMIT_REFERENCES:
+        raise ValueError(f"spill_limit_of {spill_limit_of!r}; accepted: {', '.join(SPILL_LIMIT_REFERENCES)}")
+    return spill_limit_of
+
+
 M3_PER_CM3 = 1e-6
 
 _INSTABILITY_WARNINGS = (
@@ -73,7 +85,7 @@ class TaskStateMixin:
         """
         Success: the spoon is held at the post-scoop pose (within position and tilt tolerances, slower than
         success_max_speed) carrying at least min_portion_cm3 of food, with spilled volume under
-        max_spill_fraction of the volume scooped.
+        max_spill_fraction of the volume scooped (spill_limit_of "scooped") or of the food in the bowl ("bowl").
 
         Returns:
             bool: True if the task succeeded
@@ -84,8 +96,13 @@ class TaskStateMixin:
             and m["spoon_tilt"] <= self.success_tilt_tolerance
             and m["spoon_speed"] <= self.success_max_speed
             and m["spoon_volume_m3"] >= self.min_portion_m3
-            and m["spill_fraction"] < self.max_spill_fraction
+            and self._spill_within_limit(m)
         )
+
+    def _spill_within_limit(self, m: dict) -> bool:
+        if self.spill_limit_of == "bowl":
+            return m["spilled_volume_m3"] < self.max_spill_fraction * float(self.grain_volumes_m3.sum())
+        return m["spill_fraction"] < self.max_spill_fraction
 
     def _rim_center(self) -> np.ndarray:
         """Centre of the bowl's rim in the world (the bowl may be nudged)."""
