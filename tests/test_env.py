@@ -223,22 +223,23 @@ def test_success_on_hand_made_states():
 
 
 def test_the_spill_limit_is_of_the_scooped_volume_or_of_the_bowls():
-    """One piece on the table is 40% of a spoonful of three and a small part of the bowl: the rule decides."""
-    spilled = {}
+    """One piece on the table is 25% of a spoonful of three and a small part of the bowl: the rule decides."""
+    env = make_env("rice", min_portion_cm3=0.03)
+    env.reset()
+    _hold_spoon_at_goal(env, n_in_spoon=3)
+    adr = env.grain_qpos_adr[3]
+    rim = env._rim_center()
+    env.sim.data.qpos[adr : adr + 3] = [rim[0] + 0.15, rim[1], env.table_offset[2] + 0.005]
+    env.sim.forward()
+    info = env.scoop_info()
+    assert info["grains_in_spoon"] == 3 and info["grains_spilled"] == 1
+    assert info["spilled_volume_cm3"] < 0.05 * env.grain_volumes_m3.sum() * 1e6 and info["spill_fraction"] > 0.05
+    decided = {}
     for spill_limit_of in ("scooped", "bowl"):
-        env = make_env("rice", min_portion_cm3=0.03, spill_limit_of=spill_limit_of)
-        env.reset()
-        _hold_spoon_at_goal(env, n_in_spoon=3)
-        adr = env.grain_qpos_adr[3]
-        rim = env._rim_center()
-        env.sim.data.qpos[adr : adr + 3] = [rim[0] + 0.15, rim[1], env.table_offset[2] + 0.005]
-        env.sim.forward()
-        info = env.scoop_info()
-        assert info["grains_in_spoon"] == 3 and info["grains_spilled"] == 1
-        assert info["spilled_volume_cm3"] < 0.05 * env.grain_volumes_m3.sum() * 1e6 and info["spill_fraction"] > 0.05
-        spilled[spill_limit_of] = env._check_success()
-        env.close()
-    assert spilled == {"scooped": False, "bowl": True}
+        env.spill_limit_of = spill_limit_of
+        decided[spill_limit_of] = env._check_success()
+    env.close()
+    assert decided == {"scooped": False, "bowl": True}
     with pytest.raises(ValueError, match="spill_limit_of 'total'; accepted: scooped, bowl"):
         make_env("rice", spill_limit_of="total")
 
