@@ -359,11 +359,12 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
         self.grain_geom_ids = np.flatnonzero(np.isin(model.geom_bodyid, self.grain_body_ids))
         self.eef_site_id = self.robots[0].eef_site_id[SPOON_ARM]
         self.grain_volumes_m3 = self.grain_pile.volumes_m3
+        self.food_volume_m3 = float(self.grain_volumes_m3.sum())  # all the food in the bowl
         self.grain_masses_kg = model.body_mass[self.grain_body_ids].copy()
         if self.min_portion_cm3 is not None:
             self.min_portion_m3 = self.min_portion_cm3 * M3_PER_CM3
         else:
-            self.min_portion_m3 = self.min_portion_fraction * float(self.grain_volumes_m3.sum())
+            self.min_portion_m3 = self.min_portion_fraction * self.food_volume_m3
         self.grain_radius_max = float(self.grain_pile.radii.max())
 
     def _reset_internal(self):

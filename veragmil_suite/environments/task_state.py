@@ -101,7 +101,7 @@ class TaskStateMixin:
 
     def _spill_within_limit(self, m: dict) -> bool:
         if self.spill_limit_of == "bowl":
-            return m["spilled_volume_m3"] < self.max_spill_fraction * float(self.grain_volumes_m3.sum())
+            return m["spilled_volume_m3"] < self.max_spill_fraction * self.food_volume_m3
         return m["spill_fraction"] < self.max_spill_fraction
 
     def _rim_center(self) -> np.ndarray:
