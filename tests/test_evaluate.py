@@ -35,9 +35,9 @@ PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 EPISODES_CSV_HEADER = (
     "agent,food,episode,seed,success,grains_spilled,spilled_volume_cm3,completion_time_s,steps,end_reason,"
     "physics_error,grains_in_spoon,spill_fraction,stage,peak_grains_in_spoon,wall_s,spilled_mass_g,spoon_mass_g,"
-    "physics"
+    "physics,spill_limit_of"
 )
-EPISODES_CSV_ROW = "A,rice,0,0,True,2,0.2,10.0,200,success,,3,0.0,held,3,1.0,nan,nan,table1"
+EPISODES_CSV_ROW = "A,rice,0,0,True,2,0.2,10.0,200,success,,3,0.0,held,3,1.0,nan,nan,table1,scooped"
 # one line of episodes.jsonl, the journal a resumed run reads back
 JOURNAL_LINE = (
     '{"key": "[\\"expert\\", \\"expert\\", \\"pasta\\", 0, 80, {\\"n_grains\\": 12, \\"pile_variants\\": 1}]", '
@@ -46,9 +46,13 @@ JOURNAL_LINE = (
     '"grains_in_spoon": 12, "spill_fraction": 0.0, "stage": "loaded spoon", "peak_grains_in_spoon": 12, '
     '"wall_s": 1.3754890439995506}}'
 )
-# the same episode as written since grams and the physics are recorded (grams unknown in a journal of before: null;
-# its physics the one every episode ran on before the choice, table1)
-JOURNAL_LINE_NOW = JOURNAL_LINE[:-2] + ', "spilled_mass_g": null, "spoon_mass_g": null, "physics": "table1"}}'
+# the same episode as written since grams, the physics and the spill limit are recorded (grams unknown in a journal of
+# before: null; its physics the one every episode ran on before the choice, table1; its spill limit that of its env
+# kwargs, there the default)
+JOURNAL_LINE_NOW = (
+    JOURNAL_LINE[:-2]
+    + ', "spilled_mass_g": null, "spoon_mass_g": null, "physics": "table1", "spill_limit_of": "scooped"}}'
+)
 
 
 def _episode(agent, food, success, spilled, time_s, episode=0):
@@ -145,8 +149,12 @@ def test_summary_and_tables_match_a_hand_computed_case(tmp_path):
     saved = json.loads(Path(paths["results.json"]).read_text())
     assert list(saved["episodes"][0]) == EPISODES_CSV_HEADER.split(",")
     assert saved["config"]["physics"] == ["table1"]  # records that name none ran before the physics had a name
-    assert lines[-1] == "Physics (grain models, veragmil_suite.models.foods): table1"
-    assert len(saved["episodes"]) == len(HAND_CASE) and saved["config"] == {"seed": 0, "physics": ["table1"]}
+    assert lines[-2:] == [
+        "Physics (grain models, veragmil_suite.models.foods): table1",
+        "Spill limit of success (ScoopGranular's spill_limit_of): scooped",  # records that name none: the default
+    ]
+    config = {"seed": 0, "physics": ["table1"], "spill_limit_of": ["scooped"]}
+    assert len(saved["episodes"]) == len(HAND_CASE) and saved["config"] == config
     assert episodes[2]["stage"] == "reached pile" and episodes[0]["stage"] == "held"
     with open(paths["stages.csv"]) as f:
         stage_rows = {(r["agent"], r["food"]): r for r in csv.DictReader(f)}
@@ -174,6 +182,22 @@ def test_a_journaled_episode_reads_back_and_is_journaled_the_same_way(tmp_path):
     Journal(again, resume=False).add(task, replace(record, episode=0))
     assert again.read_text() == JOURNAL_LINE_NOW + "\n"
     assert Journal(path, resume=False).records == {} and not path.exists()  # a fresh run starts a new journal
+
+
+def test_an_episode_journaled_before_spill_limits_were_recorded_takes_its_env_kwargs_limit(tmp_path):
+    """A journal of a run scored under spill_limit_of="bowl", written before records named their spill limit, reads
+    back as scored under "bowl" (its key holds the env kwargs), so its tables say which rule made them."""
+    path = tmp_path / JOURNAL_NAME
+    bowl_kwargs = {"n_grains": 12, "pile_variants": 1, "spill_limit_of": "bowl"}
+    path.write_text(
+        JOURNAL_LINE.replace('\\"pile_variants\\": 1}', '\\"pile_variants\\": 1, \\"spill_limit_of\\": \\"bowl\\"}')
+        + "\n"
+    )
+    task = EpisodeTask("bowl", parse_spec("expert"), "pasta", 0, 0, 80, bowl_kwargs)
+    record = Journal(path, resume=True).get(task)
+    assert record is not None and record.spill_limit_of == "bowl"
+    result = EvaluationResult([record], ["bowl"], ["pasta"], {})
+    assert result.markdown().splitlines()[-1] == "Spill limit of success (ScoopGranular's spill_limit_of): bowl"
 
 
 def test_a_journal_of_another_platform_is_set_aside_not_resumed(tmp_path):

@@ -206,7 +206,8 @@ def test_an_algorithm_with_its_own_budget_is_evaluated_at_its_end_and_at_the_swe
 
 # what veragmil-quickstart prints on stdout: a line per stage, the tables, where they went
 QUICKSTART_LINES = re.compile(
-    r"\[veragmil\] .*|Table (II|III): .*|Physics \(grain models.*\): calibrated|Furthest stage .*|\|.*\|"
+    r"\[veragmil\] .*|Table (II|III): .*|Physics \(grain models.*\): calibrated|Spill limit of success \(.*\): scooped"
+    r"|Furthest stage .*|\|.*\|"
     r"|Tables, chart and .*|"
 )
 

@@ -27,7 +27,10 @@ LIGHT_SCENE = {"food": "pasta", "n_grains": 12, "pile_variants": 1}
 # what veragmil-collect --quiet prints: a line per episode, what became of it, the summary
 COLLECT_LINES = re.compile(r"episode \d+: .*|  (saved as|discarded).*|\d+ attempts, .*")
 # what veragmil-evaluate --quiet prints: its tables and where they went
-EVALUATE_LINES = re.compile(r"Table (II|III): .*|Physics \(grain models.*\): calibrated|\|.*\||written to .*|")
+EVALUATE_LINES = re.compile(
+    r"Table (II|III): .*|Physics \(grain models.*\): calibrated|Spill limit of success \(.*\): scooped|\|.*\|"
+    r"|written to .*|"
+)
 
 
 def _stage(*args: str, timeout: int = 300) -> list[str]:

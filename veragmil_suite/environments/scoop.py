@@ -21,7 +21,13 @@ from veragmil_suite.controllers.scoop_config import (
 from veragmil_suite.environments.pile_variants import PileVariantsMixin
 from veragmil_suite.environments.settling import settle
 from veragmil_suite.environments.start_pose import StartPoseMixin
-from veragmil_suite.environments.task_state import M3_PER_CM3, TaskStateMixin, check_spill_limit, instability_warnings
+from veragmil_suite.environments.task_state import (
+    DEFAULT_SPILL_LIMIT,
+    M3_PER_CM3,
+    TaskStateMixin,
+    check_spill_limit,
+    instability_warnings,
+)
 from veragmil_suite.models.arena import ScoopArena
 from veragmil_suite.models.bowl import DEFAULT_BOWL_SHAPE, Bowl
 from veragmil_suite.models.dish import DishShape
@@ -142,7 +148,7 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
         min_portion_fraction=0.05,
         min_portion_cm3=None,
         max_spill_fraction=0.05,
-        spill_limit_of="scooped",
+        spill_limit_of=DEFAULT_SPILL_LIMIT,
         table_full_size=(0.8, 0.8, 0.05),
         use_camera_obs=True,
         use_object_obs=True,

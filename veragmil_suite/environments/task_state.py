@@ -15,6 +15,8 @@ from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
 # what the success rule's spill limit is a fraction of: the volume lifted out of the bowl, or all the food in the
 # bowl (the paper's "less than 5% of the total volume spilled" read literally)
 SPILL_LIMIT_REFERENCES = ("scooped", "bowl")
+# ScoopGranular's default; every episode scored before the choice existed was scored under it
+DEFAULT_SPILL_LIMIT = "scooped"
 
 
 def check_spill_limit(spill_limit_of: str) -> str:

@@ -35,6 +35,7 @@ from veragmil_suite.devices.expert import PROFILES, ScriptedScooper
 from veragmil_suite.environments import settling
 from veragmil_suite.environments.episode import SUCCESS_HOLD_S, run_until_done
 from veragmil_suite.environments.scoop import ScoopGranular
+from veragmil_suite.environments.task_state import DEFAULT_SPILL_LIMIT
 from veragmil_suite.learning import robomimic_compat
 from veragmil_suite.models.foods import (
     FOODS,
@@ -82,6 +83,7 @@ class EpisodeRecord:
     spilled_mass_g: float = math.nan  # NaN: recorded before masses were
     spoon_mass_g: float = math.nan
     physics: str = PRE_CALIBRATION_PHYSICS  # the grain models it ran on; records that name none predate the choice
+    spill_limit_of: str = DEFAULT_SPILL_LIMIT  # what the success rule's spill limit was a fraction of (as physics)
 
     @classmethod
     def columns(cls) -> tuple[str, ...]:
@@ -92,8 +94,10 @@ class EpisodeRecord:
         return asdict(self)
 
     @classmethod
-    def from_dict(cls, values: dict) -> EpisodeRecord:
-        """The record a to_dict gave (read back from the journal); KeyError names a missing field."""
+    def from_dict(cls, values: dict, env_kwargs: dict | None = None) -> EpisodeRecord:
+        """The record a to_dict gave (read back from a journal or results.json); KeyError names a missing field.
+        A record written before its spill limit was recorded takes the one of ``env_kwargs`` (those it ran with)."""
+        values = {"spill_limit_of": (env_kwargs or {}).get("spill_limit_of", DEFAULT_SPILL_LIMIT), **values}
         optional = {f.name for f in fields(cls) if f.default is not MISSING_FIELD}
         return cls(**{name: values[name] for name in cls.columns() if name in values or name not in optional})
 
@@ -320,6 +324,7 @@ def run_episode(task: EpisodeTask) -> EpisodeRecord:
         spilled_mass_g=metrics["spilled_mass_g"],
         spoon_mass_g=metrics["spoon_mass_g"],
         physics=env.physics,
+        spill_limit_of=env.spill_limit_of,
     )
 
 
@@ -407,6 +412,7 @@ def dataset_episodes(name: str, path: str, foods: list[str]) -> list[EpisodeReco
                     spilled_mass_g=float(a.get("spilled_mass_g", math.nan)),
                     spoon_mass_g=float(a.get("spoon_mass_g", math.nan)),
                     physics=file_kwargs["physics"],
+                    spill_limit_of=file_kwargs.get("spill_limit_of", DEFAULT_SPILL_LIMIT),
                 )
             )
     return out

@@ -245,7 +245,8 @@ class Journal:
                 entry = json.loads(line)
             except ValueError:
                 continue  # the last line of a killed run
-            self.records[entry["key"]] = EpisodeRecord.from_dict(entry["record"])
+            env_kwargs = json.loads(entry["key"])[5]  # Journal.key's sixth part
+            self.records[entry["key"]] = EpisodeRecord.from_dict(entry["record"], env_kwargs)
 
     def describe_set_aside(self) -> str:
         """One line on a journal set aside: where it went and how its platform differs from this one."""
@@ -257,6 +258,7 @@ class Journal:
 
     @staticmethod
     def key(task: EpisodeTask) -> str:
+        # _read takes the episode's env kwargs back from the sixth part
         parts = [task.spec.kind, task.spec.target, task.food, task.seed, task.horizon, task.env_kwargs]
         if task.video_path:
             parts += [task.video_path, task.video_camera]

@@ -207,7 +207,9 @@ def pool(choices: list[tuple[str, Path, str]]) -> tuple[EvaluationResult, list[d
         agents[name] = known[agent]
         sources[name] = f"{source}:{agent}"
         episodes += [
-            replace(EpisodeRecord.from_dict(e), agent=name) for e in loaded[source]["episodes"] if e["agent"] == agent
+            replace(EpisodeRecord.from_dict(e, config.get("env_kwargs")), agent=name)
+            for e in loaded[source]["episodes"]
+            if e["agent"] == agent
         ]
     config = {k: reference[1][k] for k in SHARED_SETTINGS if k in reference[1]}
     result = EvaluationResult(

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from veragmil_suite.environments.stages import SCOOP_STAGES
+from veragmil_suite.environments.task_state import DEFAULT_SPILL_LIMIT
 from veragmil_suite.evaluation.agents import MISSING, EpisodeRecord
 from veragmil_suite.models.foods import PRE_CALIBRATION_PHYSICS, TRAINING_FOODS
 
@@ -65,6 +66,7 @@ def summarize(episodes: list[EpisodeRecord]) -> dict[tuple[str, str], dict]:
             completion_time_s_std=float(times.std()) if ok else math.nan,
             physics_errors=sum(bool(e.physics_error) for e in rows),
             physics=sorted({e.physics for e in rows}),
+            spill_limit_of=sorted({e.spill_limit_of for e in rows}),
             stages={stage: sum(e.stage == stage for e in rows) for stage in _stage_columns(rows)},
         )
     return out
@@ -216,12 +218,19 @@ def markdown_tables(summary: dict, agents: list[str], foods: list[str]) -> str:
             cells += [spilled, _fmt(row[f"{a} spilled g"], 2), _fmt(row[f"{a} carried g"], 2), _fmt(row[f"{a} time"])]
         lines.append(f"| {row['food'] if is_food else '*' + row['food'] + '*'} | " + " | ".join(cells) + " |")
     lines += ["", f"Physics (grain models, veragmil_suite.models.foods): {', '.join(physics_of(summary))}"]
+    lines += [f"Spill limit of success (ScoopGranular's spill_limit_of): {', '.join(spill_limits_of(summary))}"]
     return "\n".join(lines) + "\n"
 
 
 def physics_of(summary: dict) -> list[str]:
     """The physics a summary's episodes ran on (summaries written before the choice ran on PRE_CALIBRATION_PHYSICS)."""
     return sorted({p for s in summary.values() for p in s.get("physics", [PRE_CALIBRATION_PHYSICS])})
+
+
+def spill_limits_of(summary: dict) -> list[str]:
+    """What the success rule's spill limit was a fraction of in a summary's episodes (summaries written before the
+    choice existed were scored under DEFAULT_SPILL_LIMIT)."""
+    return sorted({r for s in summary.values() for r in s.get("spill_limit_of", [DEFAULT_SPILL_LIMIT])})
 
 
 def csv_tables(summary: dict, agents: list[str], foods: list[str]) -> str:
@@ -321,7 +330,7 @@ class EvaluationResult:
             writer.writeheader()
             writer.writerows(e.to_dict() for e in self.episodes)
         episodes = [e.to_dict() for e in self.episodes]
-        config = {**self.config, "physics": physics_of(self.summary)}
+        config = {**self.config, "physics": physics_of(self.summary), "spill_limit_of": spill_limits_of(self.summary)}
         results = dict(config=config, summary=list(self.summary.values()), episodes=episodes)
         Path(paths["results.json"]).write_text(json.dumps(json_safe(results), indent=2))
         Path(paths["table.md"]).write_text(self.markdown())
