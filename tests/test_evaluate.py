@@ -8,6 +8,8 @@ import csv
 import inspect
 import json
 import math
+import subprocess
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -419,3 +421,19 @@ def test_a_checkpoint_that_names_no_physics_runs_on_the_physics_it_was_trained_o
     assert checkpoint_base_kwargs({"env_kwargs": {"food": "rice", "physics": "calibrated"}}) == {
         "physics": "calibrated"
     }
+
+
+def test_reading_a_checkpoints_metadata_or_checking_a_checkpoint_argument_imports_no_robomimic():
+    """A driver reads each checkpoint's env metadata, and every program checks its checkpoint arguments, before any
+    policy runs: robomimic's import (torchvision's with it) cost seconds each time, for a dict torch.load returns."""
+    code = (
+        "import sys\n"
+        "from veragmil_suite.evaluation.agents import env_metadata\n"
+        "from veragmil_suite.scripts.quickstart import PRETRAINED, pretrained_checkpoint\n"
+        "from veragmil_suite.utils.cli.files import checkpoint\n"
+        "path = checkpoint(str(pretrained_checkpoint(PRETRAINED)))\n"
+        "heavy = sorted({m.split('.')[0] for m in sys.modules} & {'robomimic', 'torchvision'})\n"
+        "print(env_metadata(path)['env_name'], heavy)\n"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert result.stdout.strip() == "ScoopGranular []", result.stdout + result.stderr[-2000:]

@@ -37,6 +37,7 @@ from veragmil_suite.environments.episode import SUCCESS_HOLD_S, run_until_done
 from veragmil_suite.environments.scoop import ScoopGranular
 from veragmil_suite.environments.task_state import DEFAULT_SPILL_LIMIT
 from veragmil_suite.learning import robomimic_compat
+from veragmil_suite.learning.checkpoints import read_checkpoint
 from veragmil_suite.models.foods import (
     FOODS,
     PRE_CALIBRATION_PHYSICS,
@@ -370,12 +371,9 @@ def driver_piles(tasks: list[EpisodeTask]) -> dict:
 
 
 def env_metadata(path: str) -> dict:
-    """A checkpoint's env metadata, read without building its policy. torch.load, as robomimic's
-    load_dict_from_checkpoint does, without importing robomimic: its import (torchvision's with it) took 6-7 of the
-    10 s a resumed study with nothing left to do spent reading its checkpoints' metadata."""
-    import torch  # heavy: torch, only when a checkpoint is read
-
-    return torch.load(os.path.expanduser(path), map_location="cpu")["env_metadata"]
+    """A checkpoint's env metadata, read without building its policy or importing robomimic (a resumed study with
+    nothing left to do spent 6-7 of its 10 s importing robomimic for this)."""
+    return read_checkpoint(path)["env_metadata"]
 
 
 def dataset_episodes(name: str, path: str, foods: list[str]) -> list[EpisodeRecord]:

@@ -13,7 +13,7 @@ from typing import Any
 
 import h5py
 
-from veragmil_suite.learning import robomimic_compat
+from veragmil_suite.learning.checkpoints import read_checkpoint
 from veragmil_suite.utils.cli.kinds import Kind, robomimic_algos
 
 # Suffixes our writers append to an output's name while it is written (datasets.py: ".partial"; pipeline.py:
@@ -201,11 +201,8 @@ CHECKPOINT_KEYS = ("algo_name", "config", "env_metadata", "shape_metadata", "mod
 
 def _checkpoint(path: str) -> None:
     """A robomimic checkpoint: what robomimic's loader reads as a dict with the keys its tools use."""
-    robomimic_compat.install()
-    from robomimic.utils.file_utils import load_dict_from_checkpoint  # heavy: robomimic, imports torch
-
     try:
-        checkpoint = load_dict_from_checkpoint(path)
+        checkpoint = read_checkpoint(path)
     except Exception as error:  # noqa: BLE001 - torch raises many kinds for a bad file; each is named
         raise ValueError(f"torch cannot read it: {type(error).__name__}: {one_line(error)}") from None
     if not isinstance(checkpoint, dict):
