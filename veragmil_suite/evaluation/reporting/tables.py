@@ -222,15 +222,20 @@ def markdown_tables(summary: dict, agents: list[str], foods: list[str]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _named_in(summary: dict, key: str, before: str) -> list[str]:
+    """The values of a per-(agent, food) list ``key`` over a summary; ``before`` for summaries written without it."""
+    return sorted({v for s in summary.values() for v in s.get(key, [before])})
+
+
 def physics_of(summary: dict) -> list[str]:
     """The physics a summary's episodes ran on (summaries written before the choice ran on PRE_CALIBRATION_PHYSICS)."""
-    return sorted({p for s in summary.values() for p in s.get("physics", [PRE_CALIBRATION_PHYSICS])})
+    return _named_in(summary, "physics", PRE_CALIBRATION_PHYSICS)
 
 
 def spill_limits_of(summary: dict) -> list[str]:
     """What the success rule's spill limit was a fraction of in a summary's episodes (summaries written before the
     choice existed were scored under DEFAULT_SPILL_LIMIT)."""
-    return sorted({r for s in summary.values() for r in s.get("spill_limit_of", [DEFAULT_SPILL_LIMIT])})
+    return _named_in(summary, "spill_limit_of", DEFAULT_SPILL_LIMIT)
 
 
 def csv_tables(summary: dict, agents: list[str], foods: list[str]) -> str:
