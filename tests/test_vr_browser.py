@@ -119,7 +119,7 @@ def test_a_vr_collection_in_chromium_discards_keeps_and_saves_scoop_granular_dem
     steps = [
         {"waitFor": "kept 0/1 | discarded 0"},
         {"move": [0.0, 0.05, 0.0], "press": "b-button", "waitFor": "discarded 1"},
-        {"move": [0.05, 0.0, 0.0], "press": "a-button", "waitFor": f"1 demo saved to {out}"},
+        {"move": [0.05, 0.0, 0.0], "press": "a-button", "waitFor": f"finished: 1 demo saved to {out}"},
     ]
     browser = None
     try:

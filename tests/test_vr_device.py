@@ -15,7 +15,6 @@ from PIL import Image
 
 from veragmil_suite.devices import VRDevice, VRServerOptions
 from veragmil_suite.devices.vr import frames as F
-from veragmil_suite.devices.vr.server_options import CLOSE_FINISHED
 
 # real time (staleness, heartbeats, timeouts): make test runs these alone, after the rest (see conftest.py)
 pytestmark = pytest.mark.realtime
@@ -232,7 +231,7 @@ def test_the_page_is_told_the_collection_state_and_when_it_is_over():
             time.sleep(0.05)
         assert any(s["progress"] == device.progress for s in client.statuses)
         device.close(farewell="2 demos saved to vr.hdf5")
-        assert client.wait_closed() == CLOSE_FINISHED  # the page stops reconnecting on this code
+        assert client.wait_closed() is not None and client.finished  # like the page, it closed and stays closed
         assert client.statuses[-1] == {"v": 1, "type": "status", "text": "2 demos saved to vr.hdf5", "final": True}
     finally:
         client.close()

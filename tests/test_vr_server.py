@@ -21,7 +21,13 @@ from helpers.vr import Client, controller, pose_message
 from veragmil_suite.devices.vr import tls as vr_tls
 from veragmil_suite.devices.vr.protocol import PoseMessage, pack_frame
 from veragmil_suite.devices.vr.server import VRServer
-from veragmil_suite.devices.vr.server_options import MAX_WS_FRAME_BYTES, VRServerOptions, is_loopback
+from veragmil_suite.devices.vr.server_options import (
+    CLOSE_FINISHED,
+    FAREWELL_TIMEOUT_S,
+    MAX_WS_FRAME_BYTES,
+    VRServerOptions,
+    is_loopback,
+)
 
 # real time (staleness, heartbeats, timeouts): make test runs these alone, after the rest (see conftest.py)
 pytestmark = pytest.mark.realtime
@@ -224,6 +230,44 @@ def test_status_is_throttled_to_the_newest(server):
     assert wait_for(lambda: c.statuses and c.statuses[-1]["n"] == 199)
     assert len(c.statuses) < 10
     c.close()
+
+
+def test_the_page_closes_a_finished_session_itself_while_its_poses_stream_in():
+    """The final status reaches a page that streams poses, and the page, not the server, closes: a server that closed
+    first would close a socket with unread poses in it, a reset that a browser reports as an abnormal closure."""
+    srv = VRServer(VRServerOptions(port=0)).start()
+    c = Client(srv.url).connect()
+    try:
+        streaming = c.play(lambda t: dict(right=controller(squeeze=1.0)), duration=3.0, rate=250.0)
+        assert wait_for(lambda: srv.stats()["accepted"] > 20)
+        started = time.monotonic()
+        srv.stop(farewell="3 demos saved to vr.hdf5")
+        assert time.monotonic() - started < FAREWELL_TIMEOUT_S
+        assert c.wait_closed() == aiohttp.WSCloseCode.OK  # the server answered the page's close handshake
+        assert c.finished and c.statuses[-1] == {
+            "v": 1,
+            "type": "status",
+            "text": "3 demos saved to vr.hdf5",
+            "final": True,
+        }
+        assert srv.stats()["farewell_timeouts"] == 0
+        streaming.result(5.0)
+    finally:
+        c.close()
+        srv.stop()
+
+
+def test_a_page_that_does_not_close_a_finished_session_is_closed_as_finished(monkeypatch):
+    monkeypatch.setattr("veragmil_suite.devices.vr.server.FAREWELL_TIMEOUT_S", 0.3)
+    srv = VRServer(VRServerOptions(port=0)).start()
+    c = Client(srv.url, close_on_final=False).connect()
+    try:
+        srv.stop(farewell="no demo saved")
+        assert c.wait_closed() == CLOSE_FINISHED and c.statuses[-1]["final"]
+        assert srv.stats()["farewell_timeouts"] == 1
+    finally:
+        c.close()
+        srv.stop()
 
 
 def test_a_failing_handler_is_counted_not_fatal():

@@ -20,6 +20,7 @@ from collections.abc import Callable
 import aiohttp
 
 from veragmil_suite.devices.vr.protocol import unpack_frame
+from veragmil_suite.devices.vr.server_options import CLOSE_FINISHED
 
 HAND = (0.2, 1.1, -0.3)  # a right hand held in front of a standing operator (XR frame)
 IDENTITY = (0.0, 0.0, 0.0, 1.0)
@@ -66,9 +67,13 @@ class Client:
 
     ``play(script, duration, rate)`` sends ``pose_message(**script(t))`` at ``rate`` Hz for ``duration`` seconds
     from the client's thread, timestamped like XR frames, while the test's thread steps the environment.
+    Like the page, it closes the connection on a final status (``finished``); ``close_on_final=False`` plays a
+    page that does not.
     """
 
-    def __init__(self, http_url: str, token: str | None = None, headers: dict | None = None):
+    def __init__(
+        self, http_url: str, token: str | None = None, headers: dict | None = None, close_on_final: bool = True
+    ):
         self.url = ws_url(http_url)
         self.token = token
         self.headers = headers or {}
@@ -77,6 +82,8 @@ class Client:
         self.welcome: dict | None = None
         self.last_jpeg: bytes | None = None
         self.close_code: int | None = None
+        self.close_on_final = close_on_final
+        self.finished = False
         self.seq = 0
         self.t0 = time.monotonic()
         self.last_t_ms = 0.0
@@ -123,6 +130,9 @@ class Client:
                     self.welcome = data
                 elif data["type"] == "status":
                     self.statuses.append(data)
+                    if data.get("final") and self.close_on_final:
+                        self.finished = True
+                        await ws.close(code=CLOSE_FINISHED, message=b"finished")
                 elif data["type"] == "ping":
                     await ws.send_str(json.dumps({"v": 1, "type": "pong", "id": data["id"]}))
         self.close_code = ws.close_code

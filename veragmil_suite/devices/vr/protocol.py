@@ -26,7 +26,8 @@ Everything the page sends is JSON text, one object per WebSocket message, at mos
 
 The server sends JSON text (``welcome`` with the configuration, ``status`` about 10 times a second, ``ping`` once
 a second, ``error`` before closing; when the collection is over, a last ``status`` with ``"final": true`` whose
-``text`` says what was saved, then close code ``CLOSE_FINISHED``: the page shows it and stops reconnecting)
+``text`` says what was saved: the page shows it, closes the connection with ``CLOSE_FINISHED`` and stops
+reconnecting; a page that does not close it within ``FAREWELL_TIMEOUT_S`` is closed with that code)
 and binary camera frames: ``FRAME_HEADER`` (little-endian: magic ``b"VF"``,
 frame version, panels (1 RGB, 2 RGB|depth side by side), frame id, simulated time, width, height) then a JPEG.
 Frame version 1 has nothing more. Version 2 (``FRAME_VERSION_TIMED``, what ``vr_stream`` sends) inserts, between

@@ -54,6 +54,7 @@ from veragmil_suite.devices.vr.server_options import (
     CLOSE_SUPERSEDED,
     CONNECT_RATE,
     COUNTERS,
+    FAREWELL_TIMEOUT_S,
     LOOP_STALL_S,
     MAX_WS_FRAME_BYTES,
     PING_INTERVAL_S,
@@ -134,6 +135,7 @@ class VRServer(ServerAccessMixin):
         self._publish_lock = threading.Lock()
         self._failures: dict[str, collections.deque] = {}
         self._client: web.WebSocketResponse | None = None
+        self._client_gone: asyncio.Event | None = None  # set when the client's handler has returned
         self._client_id = 0
         self._rtt_ms: float | None = None
         self._pings: dict[int, float] = {}
@@ -239,15 +241,21 @@ class VRServer(ServerAccessMixin):
         self.port = self._tcp_server.sockets[0].getsockname()[1]
 
     async def _shutdown(self, farewell: str | None = None) -> None:
-        if self._client is not None and not self._client.closed:
+        client, gone = self._client, self._client_gone
+        if client is not None and not client.closed:
             if farewell is None:
-                await self._client.close(code=WSCloseCode.GOING_AWAY, message=b"server stopping")
+                await client.close(code=WSCloseCode.GOING_AWAY, message=b"server stopping")
             else:
                 try:
-                    await self._client.send_str(server_message("status", text=farewell, final=True))
+                    await client.send_str(server_message("status", text=farewell, final=True))
+                    # the page answers the final status by closing (see FAREWELL_TIMEOUT_S)
+                    await asyncio.wait_for(gone.wait(), FAREWELL_TIMEOUT_S)
                 except ConnectionError:
                     pass  # the page is gone already; it reconnects to nothing and says so
-                await self._client.close(code=CLOSE_FINISHED, message=b"finished")
+                except asyncio.TimeoutError:
+                    self.count("farewell_timeouts")
+                if not client.closed:
+                    await client.close(code=CLOSE_FINISHED, message=b"finished")
         if self._tcp_server is not None:
             self._tcp_server.close()
         if self._runner is not None:
@@ -355,6 +363,7 @@ class VRServer(ServerAccessMixin):
         if guard is not None:
             guard.operator = True  # a slot of its own, never evicted
         previous, self._client = self._client, ws
+        gone = self._client_gone = asyncio.Event()
         self._client_id += 1
         cid = self._client_id
         self.count("connections")
@@ -378,6 +387,7 @@ class VRServer(ServerAccessMixin):
                     code = getattr(ws.exception(), "code", None)
                     self.count("oversized" if code == WSCloseCode.MESSAGE_TOO_BIG else "malformed")
         finally:
+            gone.set()
             sender.cancel()
             if guard is not None:
                 guard.operator = False

@@ -33,6 +33,10 @@ HEARTBEAT_TIMEOUT_S = 5.0
 # seconds past its 0.1 s wait after which the send loop takes its own event loop to have been stalled (the GIL held
 # by the simulation, a starved CPU): the client's messages of that time lie unread, so its silence is not counted
 LOOP_STALL_S = 1.0
+# seconds the server waits, after the final status, for the page to close the connection itself; a server that
+# closes first while poses stream in closes a socket with unread data, which resets the connection, and the browser
+# then reports an abnormal closure (and reconnects) instead of the finish. Past it the server closes (CLOSE_FINISHED)
+FAREWELL_TIMEOUT_S = 3.0
 HOST_RE = re.compile(r"[A-Za-z0-9.\-\[\]:]+")  # a Host header fit to be echoed into the page's CSP
 
 # close codes in the application range (4000-4999)
@@ -65,6 +69,7 @@ COUNTERS = (
     "malformed_http",  # requests that were not HTTP or not valid HTTP (answered 400, connection closed)
     "accept_failed",  # accepts that failed for want of file descriptors or memory
     "heartbeat_timeouts",  # WebSocket clients silent for the heartbeat timeout (half-open), dropped
+    "farewell_timeouts",  # pages that did not close the connection within FAREWELL_TIMEOUT_S of the final status
     "frames_published",
     "frames_sent",
     "frames_skipped",

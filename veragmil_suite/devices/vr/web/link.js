@@ -57,6 +57,7 @@ export class Link extends EventTarget {
     this.connected = false;
     this.retryDelay = 500;
     this.stopped = false;
+    this.finished = false; // the program said its last word (a final status): nothing to reconnect to
     this.sent = 0;
     this.skipped = 0;
   }
@@ -73,12 +74,14 @@ export class Link extends EventTarget {
     ws.onclose = (event) => {
       if (this.ws !== ws) return;
       this.connected = false;
-      this.dispatchEvent(new CustomEvent("close", { detail: { code: event.code, reason: event.reason } }));
+      if (event.code === CLOSE_FINISHED) this.finished = true;
+      const detail = { code: event.code, reason: event.reason, finished: this.finished };
+      this.dispatchEvent(new CustomEvent("close", { detail }));
       if (event.code === CLOSE_UNAUTHORIZED) {
         this.dispatchEvent(new CustomEvent("unauthorized", { detail: event.reason }));
         return; // a new token is needed before trying again
       }
-      if (event.code === CLOSE_FINISHED) this.stopped = true;
+      if (this.finished) this.stopped = true;
       if (event.code === CLOSE_SUPERSEDED || this.stopped) return; // another page took over, or it is over
       setTimeout(() => this.connect(), this.retryDelay);
       this.retryDelay = Math.min(this.retryDelay * 2, 3000);
@@ -114,9 +117,20 @@ export class Link extends EventTarget {
       this._send({ v: SCHEMA_VERSION, type: "pong", id: msg.id });
     } else if (msg.type === "status") {
       this.dispatchEvent(new CustomEvent("status", { detail: msg }));
+      if (msg.final) this._finish();
     } else if (msg.type === "error") {
       this.dispatchEvent(new CustomEvent("servererror", { detail: msg.reason }));
     }
+  }
+
+  // The page closes a finished session itself: the server's socket then holds no unread poses when it closes, so the
+  // close handshake completes (a server closing first under a stream of poses resets the connection, and the browser
+  // reports an abnormal closure instead of the finish).
+  _finish() {
+    this.finished = true;
+    this.stopped = true;
+    this.connected = false; // no pose goes out after the close
+    if (this.ws) this.ws.close(CLOSE_FINISHED, "finished");
   }
 
   _send(obj) {

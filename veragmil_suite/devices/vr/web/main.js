@@ -129,7 +129,7 @@ link.addEventListener("status", (event) => {
 link.addEventListener("close", (event) => {
   stats.connected = false;
   const code = event.detail.code;
-  stats.finished = code === 4100;
+  stats.finished = event.detail.finished;
   if (stats.finished) showStatus(`finished: ${stats.finalText || "the program closed the session"}`);
   else showStatus(code === 4000 ? "another page took over the connection" : "disconnected: reconnecting…");
 });
