@@ -33,7 +33,8 @@ def _headless_env():
 
 def test_scripted_collection_runs_headless_in_its_automation_form(tmp_path):
     out = tmp_path / "out.hdf5"
-    args = ["--device", "scripted", "--food", "rice", "--n-grains", "80", "--episodes", "2", "--output", str(out)]
+    # pasta of 12 pieces: the cheapest scene the expert scoops (rice loads a spoon from about 80 grains: twice the time)
+    args = ["--device", "scripted", "--food", "pasta", "--n-grains", "12", "--episodes", "2", "--output", str(out)]
     result = subprocess.run(
         [str(BIN / "veragmil-collect"), *args],
         cwd=tmp_path,
@@ -52,7 +53,7 @@ def test_scripted_collection_runs_headless_in_its_automation_form(tmp_path):
         for name in data:
             g = data[name]
             assert g.attrs["success"] and g.attrs["device"] == "scripted" and g.attrs["source"] == "scripted"
-            assert g.attrs["food"] == "rice" and g.attrs["operator"] == "scripted-expert"
+            assert g.attrs["food"] == "pasta" and g.attrs["operator"] == "scripted-expert"
             assert g["obs/overhead_image"].shape[1:] == (84, 84, 3)
             assert g.attrs["num_samples"] == g["actions"].shape[0] >= 100
         attempts = json.loads(data.attrs["attempts"])

@@ -1,5 +1,6 @@
 """Dataset tools on files recorded by veragmil_suite.data.recording: info, merge, split, replay, render-obs, and
-robomimic's own get_dataset_info, playback_dataset and dataset_states_to_obs through our entry points."""
+robomimic's own get_dataset_info and dataset_states_to_obs through our entry points (its playback_dataset:
+test_robomimic_multi_food.py, on a file of several foods)."""
 
 import json
 import shutil
@@ -162,15 +163,7 @@ def test_robomimics_dataset_scripts_work_on_our_files(files, tmp_path):
     assert "total trajectories: 2" in out and f"total transitions: {2 * STEPS}" in out
     assert "filter key pasta with 2 demos" in out and '"env_name": "ScoopGranular"' in out
 
-    # robomimic's playback replays the actions open loop and warns at any state that differs from the recorded one
-    video = tmp_path / "playback.mp4"
-    out = _robomimic(
-        "veragmil-robomimic-playback", "--dataset", dataset, "--use-actions", "--video_path", video, cwd=tmp_path
-    )
-    assert "diverged" not in out
-    assert len(imageio.mimread(video, memtest=False)) >= 2 * STEPS // 5
-
-    # and extracting observations from the states gives back what we recorded
+    # extracting observations from the states gives back what we recorded
     out = _robomimic(
         "veragmil-robomimic-states-to-obs",
         "--dataset", dataset,
