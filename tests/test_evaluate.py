@@ -183,7 +183,17 @@ def test_a_journaled_episode_reads_back_and_is_journaled_the_same_way(tmp_path):
     again = tmp_path / "again.jsonl"
     Journal(again, resume=False).add(task, replace(record, episode=0))
     assert again.read_text() == JOURNAL_LINE_NOW + "\n"
-    assert Journal(path, resume=False).records == {} and not path.exists()  # a fresh run starts a new journal
+    # a run that does not resume starts a new journal, and keeps the earlier one aside
+    fresh = Journal(path, resume=False)
+    assert fresh.records == {} and not path.exists()
+    aside, _ = fresh.set_aside
+    assert aside.name == "episodes.replaced.jsonl" and aside.read_text() == JOURNAL_LINE + "\n"
+    assert fresh.describe_set_aside() == (
+        f"{path} held 1 episodes of an earlier run: kept as {aside}, not used "
+        "(--resume takes them instead of running them again)"
+    )
+    path.write_text(JOURNAL_LINE + "\n")
+    assert Journal(path, resume=False).set_aside[0].name == "episodes.replaced.1.jsonl" and aside.is_file()
 
 
 def test_an_episode_journaled_before_spill_limits_were_recorded_takes_its_env_kwargs_limit(tmp_path):

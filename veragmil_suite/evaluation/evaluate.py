@@ -199,7 +199,9 @@ class Journal:
 
     The platform that scored them (veragmil_suite.utils.host.outcome_platform) is kept beside the journal
     (<journal>.platform.json): resuming on another platform sets the journal aside under a name of its own (its
-    episodes can end otherwise here) and starts a new one. A journal without it is taken as this machine's.
+    episodes can end otherwise here) and starts a new one. A journal without it is taken as this machine's. A run
+    that does not resume sets an earlier run's journal aside too (``<stem>.replaced.jsonl``): finished episodes
+    are never deleted.
     """
 
     def __init__(self, path: Path, resume: bool):
@@ -207,13 +209,17 @@ class Journal:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.records: dict[str, EpisodeRecord] = {}
         self.platform = outcome_platform()
-        self.set_aside: tuple[Path, dict] | None = None  # (where, the platform that wrote it)
+        # (where, the platform that wrote it; None: set aside because this run does not resume)
+        self.set_aside: tuple[Path, dict | None] | None = None
         if resume and self.path.exists():
             written_on = self._written_on()
             if written_on != self.platform:
-                self.set_aside = (self._move_aside(written_on), written_on)
+                tag = hashlib.sha1(canonical(written_on).encode()).hexdigest()[:8]
+                self.set_aside = (self._move_aside(tag, written_on), written_on)
             else:
                 self._read()
+        elif self.path.exists() and self.path.stat().st_size > 0:
+            self.set_aside = (self._move_aside("replaced", self._written_on()), None)
         elif self.path.exists():
             self.path.unlink()
         self._platform_path(self.path).write_text(json.dumps(self.platform, sort_keys=True) + "\n")
@@ -231,8 +237,7 @@ class Journal:
         except ValueError:
             return {"platform": "unreadable"}
 
-    def _move_aside(self, written_on: dict) -> Path:
-        tag = hashlib.sha1(canonical(written_on).encode()).hexdigest()[:8]
+    def _move_aside(self, tag: str, written_on: dict) -> Path:
         names = (f"{self.path.stem}.{tag}{f'.{n}' if n else ''}{self.path.suffix}" for n in itertools.count())
         aside = next(p for p in map(self.path.with_name, names) if not p.exists())
         self.path.rename(aside)
@@ -249,8 +254,14 @@ class Journal:
             self.records[entry["key"]] = EpisodeRecord.from_dict(entry["record"], env_kwargs)
 
     def describe_set_aside(self) -> str:
-        """One line on a journal set aside: where it went and how its platform differs from this one."""
+        """One line on a journal set aside: where it went, and how its platform differs from this one."""
         aside, written_on = self.set_aside
+        if written_on is None:
+            finished = len(aside.read_text().splitlines())
+            return (
+                f"{self.path} held {finished} episodes of an earlier run: kept as {aside}, not used "
+                "(--resume takes them instead of running them again)"
+            )
         differs = ", ".join(
             f"{k} {written_on.get(k, 'unknown')} (here {v})" for k, v in self.platform.items() if written_on.get(k) != v
         )
