@@ -10,6 +10,7 @@ import json
 import math
 import subprocess
 import sys
+import warnings
 from dataclasses import replace
 from pathlib import Path
 
@@ -89,6 +90,15 @@ HAND_CASE = [
     _episode("A", "peas", True, 2, 12.0, 1),
     _episode("B", "rice", True, 3, 9.0, 0),
 ]
+
+
+def test_a_chart_of_one_food_is_drawn_without_a_warning(tmp_path):
+    """One food makes (2, 1) error bars, which matplotlib handled through a conversion NumPy deprecates."""
+    result = EvaluationResult([r for r in HAND_CASE if r.food == "rice"], ["A", "B"], ["rice"], dict(seed=0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        result.write(tmp_path)
+    assert (tmp_path / "success.png").read_bytes()[:8] == PNG_MAGIC
 
 
 def test_summary_and_tables_match_a_hand_computed_case(tmp_path):

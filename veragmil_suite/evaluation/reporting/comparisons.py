@@ -82,7 +82,7 @@ def write_learning_curves(result, points: list[dict], out_dir: Path) -> None:
                 err = np.array([[y_ - r[f"{key} ci95 low"], r[f"{key} ci95 high"] - y_] for y_, r in zip(y, group)]).T
                 seed_label = f", seed {seed}" if several_seeds else ""
                 name = f"{profile} {ALGORITHMS[algo].label} {obs} obs, {line} {line_label}{seed_label}, {key}"
-                ax.errorbar(x, y, yerr=err, fmt=style, capsize=3, label=name)
+                ax.errorbar(x, y, yerr=err.tolist(), fmt=style, capsize=3, label=name)  # lists: see plot_success
         ax.set_xscale("log")
         ax.minorticks_off()
         ax.set_xticks(sorted({r[x_key] for r in rows}), [str(v) for v in sorted({r[x_key] for r in rows})])
