@@ -13,6 +13,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from helpers.output import warning_lines
 from helpers.programs import run_program
 
 from veragmil_suite.learning import robomimic_compat
@@ -205,6 +206,11 @@ def test_run_agent_rolls_the_checkpoint_out_in_a_framestacked_env(trained, tmp_p
     agent = run_program("veragmil-run-agent", "--agent", checkpoints[0], "--n_rollouts", 1, "--horizon", 10,
                  "--dataset_path", out, check=False)  # fmt: skip
     assert agent.returncode == 0, agent.stdout[-3000:] + agent.stderr[-3000:]
+    # quiet, like the other algorithms (test_quiet.py): no warning in training or in the rollout
+    for run in (result, agent):
+        assert not warning_lines((run.stdout + run.stderr).splitlines()), warning_lines(
+            (run.stdout + run.stderr).splitlines()
+        )
     with h5py.File(out, "r") as f:
         actions = f["data/demo_0/actions"][:]
     assert actions.shape == (10, ACTION_DIM) and np.all(np.isfinite(actions)) and np.all(np.abs(actions) <= 1)

@@ -21,6 +21,7 @@ itself, starting an episode with its first observation repeated, as the wrapper 
 from __future__ import annotations
 
 import copy
+import warnings
 from collections import OrderedDict, deque
 
 import robomimic.models.obs_nets as ObsNets
@@ -95,7 +96,11 @@ class DiffusionPolicyUNet(PolicyAlgo):
         self.ema = None
         self._ema_nets = None  # the EMA weights in a copy of the nets, brought up to date when acting
         if self.algo_config.ema.enabled:
-            from diffusers.training_utils import EMAModel  # heavy: diffusers, only when used
+            with warnings.catch_warnings():
+                # diffusers.training_utils imports all of diffusers' models; on a machine without CUDA one of them
+                # warns at import that it disables its autocast: about a model this policy never uses
+                warnings.filterwarnings("ignore", "CUDA is not available or torch_xla is imported", UserWarning)
+                from diffusers.training_utils import EMAModel  # heavy: diffusers, only when used
 
             # the paper's EMA: decay 1 - (1 + step)^-power, at most 0.9999
             power = self.algo_config.ema.power
