@@ -178,7 +178,8 @@ class VRServer(ServerAccessMixin):
         if loop is None or thread is None:
             return
         try:
-            asyncio.run_coroutine_threadsafe(self._shutdown(farewell), loop).result(10.0)
+            # the page's answer to a farewell, then at most aiohttp's 10 s close handshake
+            asyncio.run_coroutine_threadsafe(self._shutdown(farewell), loop).result(FAREWELL_TIMEOUT_S + 10.0)
         except Exception:
             LOG.exception("VR server shutdown")
         loop.call_soon_threadsafe(loop.stop)
