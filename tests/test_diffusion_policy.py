@@ -208,9 +208,8 @@ def test_run_agent_rolls_the_checkpoint_out_in_a_framestacked_env(trained, tmp_p
     assert agent.returncode == 0, agent.stdout[-3000:] + agent.stderr[-3000:]
     # quiet, like the other algorithms (test_quiet.py): no warning in training or in the rollout
     for run in (result, agent):
-        assert not warning_lines((run.stdout + run.stderr).splitlines()), warning_lines(
-            (run.stdout + run.stderr).splitlines()
-        )
+        warned = warning_lines((run.stdout + run.stderr).splitlines())
+        assert not warned, warned
     with h5py.File(out, "r") as f:
         actions = f["data/demo_0/actions"][:]
     assert actions.shape == (10, ACTION_DIM) and np.all(np.isfinite(actions)) and np.all(np.abs(actions) <= 1)

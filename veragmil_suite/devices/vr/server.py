@@ -173,7 +173,7 @@ class VRServer(ServerAccessMixin):
 
     def stop(self, farewell: str | None = None) -> None:
         """Close the connection and the port; safe to call twice. With ``farewell``, the page is told that the
-        session is over (a final status with that text, close code CLOSE_FINISHED) and does not reconnect."""
+        session is over (a final status with that text), closes the connection itself and does not reconnect."""
         loop, thread = self._loop, self._thread
         if loop is None or thread is None:
             return
