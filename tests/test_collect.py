@@ -34,7 +34,7 @@ def _headless_env():
 def test_scripted_collection_runs_headless_in_its_automation_form(tmp_path):
     out = tmp_path / "out.hdf5"
     # pasta of 12 pieces: the cheapest scene the expert scoops (rice loads a spoon from about 80 grains: twice the time)
-    args = ["--device", "scripted", "--food", "pasta", "--n-grains", "12", "--episodes", "2", "--output", str(out)]
+    args = ["--device", "scripted", "--food", "pasta", "--n-grains", "12", "--episodes", "1", "--output", str(out)]
     result = subprocess.run(
         [str(BIN / "veragmil-collect"), *args],
         cwd=tmp_path,
@@ -45,11 +45,11 @@ def test_scripted_collection_runs_headless_in_its_automation_form(tmp_path):
         timeout=600,
     )
     assert result.returncode == 0, result.stderr[-2000:]
-    assert result.stdout.count("saved as demo_") == 2
+    assert result.stdout.count("saved as demo_") == 1
     assert "spilled" in result.stdout and "time" in result.stdout
     with open_dataset(out) as f:
         data = f["data"]
-        assert sorted(data.keys()) == ["demo_0", "demo_1"]
+        assert sorted(data.keys()) == ["demo_0"]
         for name in data:
             g = data[name]
             assert g.attrs["success"] and g.attrs["device"] == "scripted" and g.attrs["source"] == "scripted"
@@ -57,7 +57,7 @@ def test_scripted_collection_runs_headless_in_its_automation_form(tmp_path):
             assert g["obs/overhead_image"].shape[1:] == (84, 84, 3)
             assert g.attrs["num_samples"] == g["actions"].shape[0] >= 100
         attempts = json.loads(data.attrs["attempts"])
-        assert sum(a["kept"] for a in attempts) == 2
+        assert sum(a["kept"] for a in attempts) == 1
         assert all(a["device"] == "scripted" for a in attempts)
 
 
@@ -76,12 +76,12 @@ def test_parallel_recording_writes_the_same_demos_as_serial_recording(tmp_path):
     # seed 3's first attempts; --cameras with no name: low-dim only
     serial, parallel = tmp_path / "serial.hdf5", tmp_path / "parallel.hdf5"
     for out, workers in ((serial, "1"), (parallel, "2")):
-        result = _collect(out, "--episodes", "3", "--seed", "3", "--workers", workers, "--cameras")
+        result = _collect(out, "--episodes", "2", "--seed", "3", "--workers", workers, "--cameras")
         assert result.returncode == 0, result.stderr[-2000:]
     with open_dataset(serial) as a, open_dataset(parallel) as b:
-        assert sorted(a["data"].keys()) == sorted(b["data"].keys()) == ["demo_0", "demo_1", "demo_2"]
-        seeds = [int(a["data"][f"demo_{i}"].attrs["seed"]) for i in range(3)]
-        assert seeds == sorted(seeds) and seeds[0] >= 3 and len(set(seeds)) == 3
+        assert sorted(a["data"].keys()) == sorted(b["data"].keys()) == ["demo_0", "demo_1"]
+        seeds = [int(a["data"][f"demo_{i}"].attrs["seed"]) for i in range(2)]
+        assert seeds == sorted(seeds) and seeds[0] >= 3 and len(set(seeds)) == 2
         for name in a["data"]:
             x, y = a["data"][name], b["data"][name]
             assert x.attrs["seed"] == y.attrs["seed"] and x.attrs["stage"] == y.attrs["stage"] == "held"

@@ -85,9 +85,13 @@ def test_robomimics_states_to_obs_extracts_every_demo_and_keeps_its_attributes(m
             json.loads(theirs["data"].attrs["env_args"])[VARIANTS_KEY]
             == json.loads(ours["data"].attrs["env_args"])[VARIANTS_KEY]
         )
+        assert {k: list(theirs["mask"][k]) for k in ours["mask"]} == {k: list(ours["mask"][k]) for k in ours["mask"]}
         for name, (food, n_grains) in zip(demo_names(ours), RECORDED):
             mine, extracted = ours[f"data/{name}"], theirs[f"data/{name}"]
             assert extracted.attrs["food"] == food
+            assert {"robot0_eef_pos", "robot0_joint_pos", "object", "desired_pose", "overhead_image"} <= set(
+                extracted["obs"]
+            )
             kwargs = json.loads(extracted.attrs["env_args"])["env_kwargs"]
             assert (kwargs["food"], kwargs["n_grains"], kwargs["camera_heights"]) == (food, n_grains, size)
             assert extracted["obs/overhead_image"].shape == (STEPS, size, size, 3)
@@ -96,6 +100,9 @@ def test_robomimics_states_to_obs_extracts_every_demo_and_keeps_its_attributes(m
                 # joint_acc: from the torques applied, not a function of the state; images: another size
                 if key != "robot0_joint_acc" and "overhead" not in key:
                     np.testing.assert_array_equal(extracted["obs"][key][()], mine["obs"][key][()], err_msg=key)
+                    np.testing.assert_array_equal(
+                        extracted["next_obs"][key][:-1], mine["next_obs"][key][:-1], err_msg=f"next_obs {key}"
+                    )
     # a failed run leaves the earlier output as it was, and no partial file
     before = (tmp_path / "extracted.hdf5").read_bytes()
     bad = ["--dataset", dataset, "--output_name", "extracted.hdf5", "--camera_names", "nowhere"]
