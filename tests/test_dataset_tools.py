@@ -1,5 +1,5 @@
 """Dataset tools on files recorded by veragmil_suite.data.recording: info, merge, split, replay, render-obs, and
-robomimic's own get_dataset_info and dataset_states_to_obs through our entry points (its playback_dataset:
+robomimic's own get_dataset_info through our entry point (its playback_dataset and dataset_states_to_obs:
 test_robomimic_multi_food.py, on a file of several foods)."""
 
 import json
@@ -155,7 +155,6 @@ def _robomimic(command, *args, cwd):
 
 
 def test_robomimics_dataset_info_reads_our_files(files, tmp_path):
-    """robomimic's states-to-obs on our files: test_robomimic_multi_food.py."""
     pasta, _ = files
     dataset = tmp_path / "pasta.hdf5"
     shutil.copy(pasta, dataset)
