@@ -85,6 +85,7 @@ def test_robomimics_states_to_obs_extracts_every_demo_and_keeps_its_attributes(m
             json.loads(theirs["data"].attrs["env_args"])[VARIANTS_KEY]
             == json.loads(ours["data"].attrs["env_args"])[VARIANTS_KEY]
         )
+        assert json.loads(theirs["data"].attrs["env_args"])["env_name"] == "ScoopGranular"
         assert {k: list(theirs["mask"][k]) for k in ours["mask"]} == {k: list(ours["mask"][k]) for k in ours["mask"]}
         for name, (food, n_grains) in zip(demo_names(ours), RECORDED):
             mine, extracted = ours[f"data/{name}"], theirs[f"data/{name}"]
