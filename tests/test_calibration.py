@@ -23,7 +23,7 @@ from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
 
 # Heap angle (degrees) the benchmark's quick lifting-cylinder test of a calibrated food must exceed: Table I's grains
 # measure 1-12 degrees there, calibrated rice 21.5 and beans 23.4 (results/calibration/quick.txt); the published
-# angles are 20.5-40 (rice 26.6). Pasta and flakes have no published angle.
+# angles are 20.5-40 (rice 26.6-36.9). Pasta and flakes have no published angle.
 QUICK_HEAP_MIN_DEG = {"rice": 16.0, "beans": 17.0}
 
 

@@ -319,9 +319,14 @@ def get_food(food: str | FoodSpec) -> FoodSpec:
 
 
 # Sources of the reference measurements (short keys, full citations).
+_MUSTOFA = (
+    "Mustofa 2020, 'Physical properties of Membramo, Superwin, and Cimelati rices', J-Tech 8(2):122-128,"
+    " doi:10.30869/jtech.v8i2.606: a poured heap (h and D), 26.59 degrees for the lower two of three cultivars;"
+    " bulk density 0.80 and grain density 1.42 g/cm3 (Superwin, the highest of the three)"
+)
 _AOR_RICE = (
-    "Applied Engineering in Agriculture, doi:10.13031/aea.13156: poured heap of milled rice, the food the catalog's"
-    " bulk density describes (rough rice, in the husk, piles at 29.6-36.9 degrees at 12-21% m.c.)"
+    _MUSTOFA + "; AEA doi:10.13031/aea.13156: rough rice piles at 29.6-36.9 degrees (12-21% m.c.) and head and"
+    " broken milled rice at about the same angle"
 )
 _JOUKI = "Jouki and Khazaei 2012, 'Some physical properties of rice seed'"
 _TAVAKOLI = "Tavakoli et al. 2009, 'Moisture-dependent physical properties of barley grains', IJABE"
@@ -348,9 +353,10 @@ _TABLE1 = {
 
 _REFERENCE = {
     "rice": FoodReference(
-        angle_of_repose_deg=Measured(26.6, 26.6, "deg", _AOR_RICE),
-        bulk_density_g_cm3=Measured(0.78, 0.80, "g/cm3", _SURVEY),
+        angle_of_repose_deg=Measured(26.6, 36.9, "deg", _AOR_RICE),
+        bulk_density_g_cm3=Measured(0.78, 0.80, "g/cm3", _MUSTOFA + "; 0.78: " + _SURVEY),
         grain_mass_mg=Measured(20.0, 27.0, "mg", _JOUKI),
+        particle_density_g_cm3=Measured(1.42, 1.42, "g/cm3", _MUSTOFA),
         grain_dims_mm=(7.4, 2.75, 2.5),
         dims_source=_JOUKI,
     ),
@@ -374,6 +380,7 @@ _REFERENCE = {
         angle_of_repose_deg=Measured(35.0, 40.0, "deg", _BEANS),
         bulk_density_g_cm3=Measured(0.69, 0.77, "g/cm3", _BEANS),
         grain_mass_mg=Measured(643.0, 730.0, "mg", _BEANS),
+        particle_density_g_cm3=Measured(1.14, 1.33, "g/cm3", _BEANS),
     ),
     "flakes": FoodReference(bulk_density_g_cm3=Measured(0.092, 0.122, "g/cm3", _FLAKES_PATENT)),
 }
