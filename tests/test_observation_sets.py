@@ -53,5 +53,23 @@ def test_a_config_takes_a_sets_low_dim_keys_and_an_unknown_set_is_named():
     config = {"observation": {"modalities": {"obs": {"low_dim": ["object"], "rgb": ["overhead_image"]}}}}
     out = with_observation_set(config, "no-load")["observation"]["modalities"]["obs"]
     assert out == {"low_dim": list(OBSERVATION_SETS["no-load"]), "rgb": ["overhead_image"]}
-    with pytest.raises(ValueError, match=r"unknown observation set 'counts'; accepted: \['no-load', 'object'\]"):
+    with pytest.raises(
+        ValueError, match=r"unknown observation set 'counts'; accepted: \['no-load', 'object', 'wrench'\]"
+    ):
         check_observation_set("counts")
+
+
+def test_the_wrench_set_adds_the_wrist_sensor_which_reads_the_spoons_weight_at_rest(env):
+    keys = OBSERVATION_SETS["wrench"]
+    assert keys[: len(OBSERVATION_SETS["no-load"])] == OBSERVATION_SETS["no-load"]
+    assert not set(keys) & set(PRIVILEGED_OBSERVATIONS)
+    env.reset(seed=0)
+    env.step(np.zeros(env.action_dim))  # a step: the sensors read the accelerations of a simulated step
+    obs = robomimic_obs.observation(env)
+    assert obs["robot0_eef_force"].shape == obs["robot0_eef_torque"].shape == (3,)
+    # the spoon hangs in the air at the start: the sensor carries the weight of the bodies below its frame
+    model = env.sim.model._model
+    sensor = model.sensor(env.robots[0].gripper["right"].important_sensors["force_ee"])
+    weight = model.body_subtreemass[model.site_bodyid[sensor.objid[0]]] * np.linalg.norm(model.opt.gravity)
+    assert weight > 0.5
+    assert np.linalg.norm(obs["robot0_eef_force"]) == pytest.approx(weight, rel=0.1)

@@ -136,7 +136,9 @@ def test_observation_sets_name_their_runs_and_columns_and_the_object_set_keeps_i
     assert default.run_name("expert", "bc", 30, 1) == "expert_bc_30demos_2000steps_obs-no-load"
     config = training_config("bc", tmp_path / "d.hdf5", tmp_path / "runs", "x", 1, 1, obs_set="no-load")
     assert config["observation"]["modalities"]["obs"]["low_dim"] == list(OBSERVATION_SETS["no-load"])
-    with pytest.raises(ValueError, match=r"unknown observation set 'counts'; accepted: \['no-load', 'object'\]"):
+    with pytest.raises(
+        ValueError, match=r"unknown observation set 'counts'; accepted: \['no-load', 'object', 'wrench'\]"
+    ):
         PipelineSettings(**grid, obs_sets=["counts"])
 
 

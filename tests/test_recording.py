@@ -32,6 +32,8 @@ ROBOT_KEYS = {
     "robot0_eef_pos": (3,),
     "robot0_eef_quat": (4,),
     "robot0_eef_quat_site": (4,),
+    "robot0_eef_force": (3,),
+    "robot0_eef_torque": (3,),
 }
 OBJECT_KEYS = {"desired_pose": (7,), "bowl_pos": (3,), "spoon_to_desired_pos": (3,), "spoon_load": (2,)}
 CAMERA_KEYS = {
@@ -116,7 +118,7 @@ def test_each_observation_is_that_of_its_recorded_state(recorded):
             env.sim.set_state_from_flattened(g["states"][t])
             obs = robomimic_obs.observation(env, robomimic_obs.observe(env))
             for key in obs:
-                if key == "robot0_joint_acc":  # accelerations come from the torques applied, not from the state
+                if key in robomimic_obs.TORQUE_DEPENDENT_OBSERVATIONS:
                     continue
                 np.testing.assert_array_equal(obs[key], g["obs"][key][t], err_msg=f"{key} at step {t}")
     env.close()

@@ -16,7 +16,7 @@ from helpers.programs import run_program
 from helpers.recording import CAMERA_SIZE, record_file, tiny_env_kwargs
 
 from veragmil_suite.data.schema import VARIANTS_KEY, demo_names
-from veragmil_suite.learning import robomimic_compat
+from veragmil_suite.learning import robomimic_compat, robomimic_obs
 from veragmil_suite.scripts.dataset_tools import info_main
 
 # one worker runs this file's tests: its module fixtures are built once (make test: --dist loadgroup)
@@ -98,8 +98,8 @@ def test_robomimics_states_to_obs_extracts_every_demo_and_keeps_its_attributes(m
             assert extracted["obs/overhead_image"].shape == (STEPS, size, size, 3)
             np.testing.assert_array_equal(extracted["dones"][()], mine["dones"][()])
             for key in extracted["obs"]:
-                # joint_acc: from the torques applied, not a function of the state; images: another size
-                if key != "robot0_joint_acc" and "overhead" not in key:
+                # images: another size
+                if key not in robomimic_obs.TORQUE_DEPENDENT_OBSERVATIONS and "overhead" not in key:
                     np.testing.assert_array_equal(extracted["obs"][key][()], mine["obs"][key][()], err_msg=key)
                     np.testing.assert_array_equal(
                         extracted["next_obs"][key][:-1], mine["next_obs"][key][:-1], err_msg=f"next_obs {key}"

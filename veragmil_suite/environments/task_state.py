@@ -263,6 +263,7 @@ class TaskStateMixin:
                 observables[f"{pf}{name}"] = Observable(
                     name=f"{pf}{name}", sensor=source._sensor, sampling_rate=self.control_freq
                 )
+        observables.update(self._wrist_wrench_observables())
 
         if self.use_object_obs:
             modality = "object"
@@ -301,6 +302,30 @@ class TaskStateMixin:
                 observables[s.__name__] = Observable(name=s.__name__, sensor=s, sampling_rate=self.control_freq)
 
         return observables
+
+    def _wrist_wrench_observables(self) -> dict[str, Observable]:
+        """
+        The spoon's wrist force-torque sensor (the gripper's ``force_ee`` and ``torque_ee`` at its ``ft_frame``,
+        in that frame; N and N m): what a wrist F/T sensor, an option of the xArm7 and the usual sense of feeding
+        robots, reads. It holds the spoon's weight and every contact the spoon makes, grains and bowl included.
+        Their own modality keeps robosuite's ``robot0_proprio-state`` as it was.
+        """
+        robot = self.robots[0]
+        pf = robot.robot_model.naming_prefix
+        modality = f"{pf}wrench"
+
+        @sensor(modality=modality)
+        def eef_force(obs_cache):
+            return np.array(robot.ee_force[SPOON_ARM])
+
+        @sensor(modality=modality)
+        def eef_torque(obs_cache):
+            return np.array(robot.ee_torque[SPOON_ARM])
+
+        return {
+            f"{pf}{s.__name__}": Observable(name=f"{pf}{s.__name__}", sensor=s, sampling_rate=self.control_freq)
+            for s in (eef_force, eef_torque)
+        }
 
     def _update_observables(self, force=False):
         """

@@ -12,6 +12,9 @@ physical parameters are privileged: no real robot observes them.
 - ``no-load`` (the low-dim configs' keys): what a real robot could have: its end-effector pose (proprioception), the
   desired pose and the bowl's position (a camera finds the bowl) and the spoon's offset from the desired position
   (the same two combined).
+- ``wrench``: ``no-load`` and the wrist force-torque sensor (``robot0_eef_force``, ``robot0_eef_torque``): the spoon's
+  weight and its contacts with grains and bowl, the sense a real robot has of what the grain counts say. The sensor
+  reads the torques applied in a step, not the state alone: its data must be recorded, not extracted from states.
 - ``object``: the end-effector pose and ``object``, grain counts included.
 """
 
@@ -22,9 +25,11 @@ OBJECT_OBSERVABLES = ("desired_pose", "bowl_pos", "spoon_to_desired_pos", "spoon
 # observations no real robot has: grain counts, the food's physical parameters, and ``object``, which holds the counts
 PRIVILEGED_OBSERVATIONS = ("spoon_load", "food_params", "object")
 
+NO_LOAD = ("robot0_eef_pos", "robot0_eef_quat", "desired_pose", "bowl_pos", "spoon_to_desired_pos")
 OBSERVATION_SETS: dict[str, tuple[str, ...]] = {
     "object": ("robot0_eef_pos", "robot0_eef_quat", "object"),
-    "no-load": ("robot0_eef_pos", "robot0_eef_quat", "desired_pose", "bowl_pos", "spoon_to_desired_pos"),
+    "no-load": NO_LOAD,
+    "wrench": NO_LOAD + ("robot0_eef_force", "robot0_eef_torque"),
 }
 # the set of the low-dim configs in configs/json (tests/test_configs.py holds them to it): BC scored as well without
 # grain counts as with them (results/grid_calibrated_noload/)
