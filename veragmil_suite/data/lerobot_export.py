@@ -6,8 +6,8 @@ v3.0), written by the standalone ``lerobot-dataset`` package's own writer (``LeR
 Each demo becomes an episode, each step a frame, at the control rate:
 
     action                          the stored action (OSC_POSE deltas in [-1, 1]), float32
-    observation.state               the robot's own sensing (joints, end effector, wrist force-torque): every ``robot0_*``
-                                    low-dim key, in name order, float32
+    observation.state               the robot's own sensing (joints, end effector, wrist force-torque): every
+                                    ``robot0_*`` low-dim key, in name order, float32
     observation.environment_state   robosuite's object-state (``object``: the task's bowl, spoon and target keys)
     observation.images.<camera>     each ``<camera>_image`` the file holds, as a video
     next.reward, next.done          the reward and done flag of the step
