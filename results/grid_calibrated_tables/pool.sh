@@ -5,25 +5,30 @@
 set -euo pipefail
 R=results
 OUT=runs/grid_calibrated_tables/eval
-A=(--agent "expert operator=$R/grid_calibrated_noload/results.json:expert operator")
-for s in 1 2 3; do
-  A+=(--agent "expert BC no-load obs seed $s=$R/grid_calibrated_noload/results.json:expert BC no-load obs seed $s")
-  A+=(--agent "expert BC-RNN no-load obs seed $s=$R/grid_calibrated_bcrnn_seeds/results.json:expert BC-RNN no-load obs seed $s")
-  A+=(--agent "expert BCQ no-load obs seed $s=$R/grid_calibrated_bcq/results.json:expert BCQ no-load obs seed $s")
-done
-for s in 1 2; do
-  A+=(--agent "expert Diffusion Policy no-load obs seed $s=$R/grid_calibrated_diffusion_seeds/results.json:expert Diffusion Policy no-load obs seed $s")
-done
-A+=(--agent "spacemouse operator=$R/grid_calibrated_spacemouse/results.json:spacemouse operator")
-for s in 1 2 3; do
-  A+=(--agent "spacemouse BC no-load obs seed $s=$R/grid_calibrated_spacemouse_noload/results.json:spacemouse BC no-load obs seed $s")
-done
-for s in $(python -c "import json; print(' '.join(a.rsplit(' ', 1)[1] for a in json.load(open('$R/grid_calibrated_spacemouse_bcq/results.json'))['config']['agents']))"); do
-  A+=(--agent "spacemouse BCQ no-load obs seed $s=$R/grid_calibrated_spacemouse_bcq/results.json:spacemouse BCQ no-load obs seed $s")
-done
-for s in $(python -c "import json; print(' '.join(a.rsplit(' ', 1)[1] for a in json.load(open('$R/grid_calibrated_spacemouse_bcrnn/results.json'))['config']['agents']))"); do
-  A+=(--agent "spacemouse BC-RNN no-load obs seed $s=$R/grid_calibrated_spacemouse_bcrnn/results.json:spacemouse BC-RNN no-load obs seed $s")
-done
+A=()
+# add FOLDER MODEL: every agent of results/FOLDER/results.json named MODEL or "MODEL seed N", under its own name
+add() {
+  local file="$R/$1/results.json" agent
+  while IFS= read -r agent; do
+    A+=(--agent "$agent=$file:$agent")
+  done < <(python - "$file" "$2" <<'PY'
+import json, re, sys
+path, model = sys.argv[1:]
+for agent in json.load(open(path))["config"]["agents"]:
+    if re.fullmatch(re.escape(model) + r"( seed \d+)?", agent):
+        print(agent)
+PY
+  )
+}
+add grid_calibrated_noload "expert operator"
+add grid_calibrated_noload "expert BC no-load obs"
+add grid_calibrated_bcrnn_seeds "expert BC-RNN no-load obs"
+add grid_calibrated_bcq "expert BCQ no-load obs"
+add grid_calibrated_diffusion_seeds "expert Diffusion Policy no-load obs"
+add grid_calibrated_spacemouse "spacemouse operator"
+add grid_calibrated_spacemouse_noload "spacemouse BC no-load obs"
+add grid_calibrated_spacemouse_bcq "spacemouse BCQ no-load obs"
+add grid_calibrated_spacemouse_bcrnn "spacemouse BC-RNN no-load obs"
 veragmil-pool-results "$OUT" "${A[@]}"
 python results/grid_calibrated_tables/paper_tables.py "$OUT/seeds/table.csv" > results/grid_calibrated_tables/paper_tables.md
 cp -r "$OUT"/{table.md,table.csv,stages.md,stages.csv,seeds.md,seeds.csv,success.png,seeds} results/grid_calibrated_tables/
