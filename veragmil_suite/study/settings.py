@@ -180,7 +180,8 @@ class PipelineSettings:
     obs_sets: list[str] = setting(
         Option(
             "train each model once per low-dim observation set, named in its column (veragmil_suite.learning."
-            "observation_sets): object holds grain counts, no-load what a real robot could observe",
+            "observation_sets): object holds grain counts, no-load what a real robot could observe, wrench no-load "
+            "and the wrist's force-torque sensor",
             cli.ListOf(cli.observation_set),
         ),
         factory=lambda: [DEFAULT_OBSERVATION_SET],
