@@ -14,7 +14,7 @@ from veragmil_suite.data.collection import record_scripted, recording_env_kwargs
 from veragmil_suite.data.datasets import merge_datasets
 from veragmil_suite.data.schema import DatasetError, demo_names, open_dataset, seeds_used
 from veragmil_suite.data.writer import updated_file
-from veragmil_suite.learning.observation_sets import needs_wrench
+from veragmil_suite.learning.observation_sets import WRENCH_OBSERVATIONS, needs_wrench
 from veragmil_suite.models.foods import (
     DEFAULT_PHYSICS,
     FOODS,
@@ -46,7 +46,8 @@ def _recorded(path: Path) -> dict:
             food=kwargs.get("food"),
             n_grains=kwargs.get("n_grains"),
             physics=kwargs["physics"],
-            wrench=bool(kwargs.get("use_wrench_obs", False)),
+            # what the demos hold, whatever the env kwargs say
+            wrench=bool(names) and set(WRENCH_OBSERVATIONS) <= set(f["data"][names[0]]["obs"]),
             horizon=kwargs.get("horizon"),
             robot=kwargs.get("robots"),
             cameras=kwargs.get("camera_names") if kwargs.get("use_camera_obs") else [],
