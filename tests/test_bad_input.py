@@ -4,6 +4,7 @@ option of every program from the parsers themselves; the cases here are those fo
 many refused after parsing, where what is wrong is a combination or a file's content."""
 
 import importlib
+import json
 import logging
 import re
 import socket
@@ -85,6 +86,8 @@ CASES = [
     ("veragmil-train", ["--algo", "nonexistent"], "unknown robomimic algorithm 'nonexistent'; accepted: bc, bcq, "),
     ("veragmil-train", ["--config", "{tmp}/bogus_key.json"], "key 'bogus_key' does not exist"),
     ("veragmil-train", ["--config", "{tmp}/bogus_algo.json"], "algo_name 'gail' is not one of robomimic's: bc, "),
+    ("veragmil-train", ["--config", "{tmp}/wrench.json", "--dataset", SAMPLE],
+     "scoop.hdf5 holds no robot0_eef_force, robot0_eef_torque observations, which {tmp}/wrench.json trains on; record"),
     ("veragmil-run-agent", ["--agent", "{missing}", "--n_rollouts", "1"], "no such file"),
     ("veragmil-run-agent", ["--agent", "{tmp}/fake.pth"], "not a readable robomimic checkpoint (.pth) (torch cannot"),
     ("veragmil-run-agent", ["--agent", "{tmp}/dict.pth"], "it lacks algo_name, config, env_metadata"),
@@ -148,6 +151,9 @@ def _bad_files(folder: Path) -> None:
     (folder / "bad.json").write_text("{not json")
     (folder / "bogus_key.json").write_text('{"algo_name": "bc", "bogus_key": 1}')
     (folder / "bogus_algo.json").write_text('{"algo_name": "gail"}')
+    low_dim = ["robot0_eef_pos", "robot0_eef_force", "robot0_eef_torque"]  # the wrist sensor: scoop.hdf5 lacks it
+    wrench = {"algo_name": "bc", "observation": {"modalities": {"obs": {"low_dim": low_dim}}}}
+    (folder / "wrench.json").write_text(json.dumps(wrench))
     (folder / "fake.pth").write_text("hello")
     torch.save({"a": 1}, folder / "dict.pth")
     torch.save([1, 2], folder / "list.pth")

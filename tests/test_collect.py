@@ -288,6 +288,13 @@ def test_vr_allow_emulated_reaches_the_device(flag, allowed):
         env.close()
 
 
+def test_wrench_records_the_wrist_sensor():
+    base = ["--device", "keyboard", *LIGHT, "--output", "unused.hdf5"]
+    assert "use_wrench_obs" not in collect.env_kwargs_from_args(collect.build_parser().parse_args(base))
+    with_sensor = collect.env_kwargs_from_args(collect.build_parser().parse_args([*base, "--wrench"]))
+    assert with_sensor["use_wrench_obs"] is True
+
+
 def test_missing_hardware_or_display_is_named(tmp_path, monkeypatch, capsys):
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)

@@ -11,7 +11,9 @@ from veragmil_suite.learning.observation_sets import (
     OBJECT_OBSERVABLES,
     OBSERVATION_SETS,
     PRIVILEGED_OBSERVATIONS,
+    WRENCH_OBSERVATIONS,
     check_observation_set,
+    needs_wrench,
     with_observation_set,
 )
 
@@ -61,15 +63,24 @@ def test_a_config_takes_a_sets_low_dim_keys_and_an_unknown_set_is_named():
 
 def test_the_wrench_set_adds_the_wrist_sensor_which_reads_the_spoons_weight_at_rest(env):
     keys = OBSERVATION_SETS["wrench"]
-    assert keys[: len(OBSERVATION_SETS["no-load"])] == OBSERVATION_SETS["no-load"]
+    assert keys == OBSERVATION_SETS["no-load"] + WRENCH_OBSERVATIONS
     assert not set(keys) & set(PRIVILEGED_OBSERVATIONS)
-    env.reset(seed=0)
-    env.step(np.zeros(env.action_dim))  # a step: the sensors read the accelerations of a simulated step
-    obs = robomimic_obs.observation(env)
+    assert needs_wrench(["object", "wrench"]) and not needs_wrench(["object", "no-load"])
+    # off by default: every observation of a default dataset can be extracted from its states
+    assert not set(WRENCH_OBSERVATIONS) & set(env._observables)
+    felt = robosuite.make(
+        "ScoopGranular", robots="XArm7", food="pasta", n_grains=12, pile_variants=1, has_renderer=False,
+        has_offscreen_renderer=False, use_camera_obs=False, use_wrench_obs=True,
+    )  # fmt: skip
+    felt.reset(seed=0)
+    felt.step(np.zeros(felt.action_dim))  # a step: the sensors read the accelerations of a simulated step
+    obs = robomimic_obs.observation(felt)
     assert obs["robot0_eef_force"].shape == obs["robot0_eef_torque"].shape == (3,)
+    assert set(WRENCH_OBSERVATIONS) <= set(robomimic_obs.TORQUE_DEPENDENT_OBSERVATIONS)
     # the spoon hangs in the air at the start: the sensor carries the weight of the bodies below its frame
-    model = env.sim.model._model
-    sensor = model.sensor(env.robots[0].gripper["right"].important_sensors["force_ee"])
+    model = felt.sim.model._model
+    sensor = model.sensor(felt.robots[0].gripper["right"].important_sensors["force_ee"])
     weight = model.body_subtreemass[model.site_bodyid[sensor.objid[0]]] * np.linalg.norm(model.opt.gravity)
     assert weight > 0.5
     assert np.linalg.norm(obs["robot0_eef_force"]) == pytest.approx(weight, rel=0.1)
+    felt.close()

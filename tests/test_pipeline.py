@@ -426,6 +426,15 @@ def test_a_shorter_recording_is_continued_to_the_demos_one_run_records(tmp_path)
         record_food(grown, demos=3, **dict(kwargs, n_grains=10))
     with pytest.raises(StageError, match="physics 'calibrated' \\(asked: 'table1'\\)"):
         record_food(grown, demos=3, **dict(kwargs, physics="table1"))
+    # the wrist sensor (the wrench observations): a file without it cannot serve a study that trains on it; a file
+    # with it serves one that does not
+    with pytest.raises(StageError, match="wrench False \\(asked: True\\)"):
+        record_food(grown, demos=3, **dict(kwargs, wrench=True))
+    felt = tmp_path / "felt.hdf5"
+    assert record_food(felt, demos=1, **dict(kwargs, wrench=True)) > 0
+    assert record_food(felt, demos=1, **kwargs) is None
+    with h5py.File(felt) as f:
+        assert {"robot0_eef_force", "robot0_eef_torque"} <= set(f["data/demo_0/obs"])
 
 
 def test_a_study_records_on_its_physics(tmp_path):

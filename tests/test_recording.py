@@ -32,8 +32,6 @@ ROBOT_KEYS = {
     "robot0_eef_pos": (3,),
     "robot0_eef_quat": (4,),
     "robot0_eef_quat_site": (4,),
-    "robot0_eef_force": (3,),
-    "robot0_eef_torque": (3,),
 }
 OBJECT_KEYS = {"desired_pose": (7,), "bowl_pos": (3,), "spoon_to_desired_pos": (3,), "spoon_load": (2,)}
 CAMERA_KEYS = {

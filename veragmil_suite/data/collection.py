@@ -45,11 +45,12 @@ def recording_env_kwargs(
     cameras: tuple[str, ...] | list[str] = ("overhead",),
     image_size: tuple[int, int] = (84, 84),
     depth: bool = False,
+    wrench: bool = False,
 ) -> dict:
     """robosuite.make keyword arguments (besides the env name) of a recording, JSON-serializable: they are stored in
     the dataset for robomimic to rebuild the env. ``controller_config``: the task's OSC_POSE when None; ``cameras``
     recorded as <name>_image (none: low-dim only), ``image_size`` (height, width); ``n_grains`` and ``physics``:
-    the food's and the task's own when None."""
+    the food's and the task's own when None; ``wrench``: the wrist force-torque sensor observed (``use_wrench_obs``)."""
     cameras = list(cameras)
     kwargs = dict(
         robots=robot,
@@ -71,6 +72,8 @@ def recording_env_kwargs(
         kwargs["n_grains"] = n_grains
     if physics is not None:
         kwargs["physics"] = physics
+    if wrench:
+        kwargs["use_wrench_obs"] = True
     return kwargs
 
 

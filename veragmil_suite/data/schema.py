@@ -116,6 +116,17 @@ def demo_names(f: h5py.File) -> list[str]:
     return sorted(names, key=lambda n: int(n[len(DEMO_PREFIX) :]))
 
 
+def missing_observations(path: str | Path, keys: list[str]) -> list[str]:
+    """Those of ``keys`` that some demo of the robomimic dataset at ``path`` holds no observations of (none when the
+    file cannot be read: the dataset's own checks name that)."""
+    try:
+        with h5py.File(path, "r") as f:
+            held = [set(g["obs"].keys()) if "obs" in g else set() for g in (f["data"][n] for n in demo_names(f))]
+    except (OSError, KeyError):
+        return []
+    return [key for key in dict.fromkeys(keys) if any(key not in obs for obs in held)]
+
+
 def open_dataset(path: str | Path, mode: str = "r") -> h5py.File:
     """Open a ScoopGranular dataset, with a clear error for anything else.
 

@@ -104,6 +104,9 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
             observation
         use_food_params_obs (bool): if True, add the food's physical parameters to the object observations
             (off by default so results on unseen foods stay honest)
+        use_wrench_obs (bool): if True, add the wrist force-torque sensor (robot0_eef_force, robot0_eef_torque). It
+            reads the torques applied in a step, not the state alone, so robomimic's dataset_states_to_obs cannot
+            regenerate it: off by default, so a dataset's every observation can be extracted from its states
         reward_scale (None or float): Scales the normalized reward function by the amount specified
         reward_shaping (bool): if True, use dense rewards
         fast_rendering (bool): no anti-aliasing, shadows or fine tessellation (software rendering is 40x faster)
@@ -153,6 +156,7 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
         use_camera_obs=True,
         use_object_obs=True,
         use_food_params_obs=False,
+        use_wrench_obs=False,
         reward_scale=1.0,
         reward_shaping=False,
         fast_rendering=True,
@@ -249,6 +253,7 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
         # whether to use ground-truth object states
         self.use_object_obs = use_object_obs
         self.use_food_params_obs = use_food_params_obs
+        self.use_wrench_obs = use_wrench_obs
 
         self._metrics_time = None
         self._metrics = None

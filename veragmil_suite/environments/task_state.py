@@ -263,7 +263,8 @@ class TaskStateMixin:
                 observables[f"{pf}{name}"] = Observable(
                     name=f"{pf}{name}", sensor=source._sensor, sampling_rate=self.control_freq
                 )
-        observables.update(self._wrist_wrench_observables())
+        if self.use_wrench_obs:
+            observables.update(self._wrist_wrench_observables())
 
         if self.use_object_obs:
             modality = "object"

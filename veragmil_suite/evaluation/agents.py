@@ -38,6 +38,7 @@ from veragmil_suite.environments.scoop import ScoopGranular
 from veragmil_suite.environments.task_state import DEFAULT_SPILL_LIMIT
 from veragmil_suite.learning import robomimic_compat
 from veragmil_suite.learning.checkpoints import read_checkpoint
+from veragmil_suite.learning.observation_sets import WRENCH_OBSERVATIONS
 from veragmil_suite.models.foods import (
     FOODS,
     PRE_CALIBRATION_PHYSICS,
@@ -267,6 +268,8 @@ def _checkpoint_env(task: EpisodeTask):
     policy, ckpt = _policy(task.spec.target, task.policy_device)
     meta = copy.deepcopy(ckpt["env_metadata"])
     meta["env_kwargs"] = _env_kwargs(task, checkpoint_base_kwargs(meta))
+    if set(ckpt["shape_metadata"]["all_obs_keys"]) & set(WRENCH_OBSERVATIONS):
+        meta["env_kwargs"]["use_wrench_obs"] = True  # a policy that reads the wrist sensor, whatever its data named
     # a multi-food dataset's variants make robomimic's rollouts take its foods in turn at each reset; an evaluated
     # episode is on its own food
     meta.pop(VARIANTS_KEY, None)

@@ -14,7 +14,8 @@ physical parameters are privileged: no real robot observes them.
   (the same two combined).
 - ``wrench``: ``no-load`` and the wrist force-torque sensor (``robot0_eef_force``, ``robot0_eef_torque``): the spoon's
   weight and its contacts with grains and bowl, the sense a real robot has of what the grain counts say. The sensor
-  reads the torques applied in a step, not the state alone: its data must be recorded, not extracted from states.
+  reads the torques applied in a step, not the state alone: ScoopGranular observes it only with
+  ``use_wrench_obs``, and its data must be recorded, not extracted from states.
 - ``object``: the end-effector pose and ``object``, grain counts included.
 """
 
@@ -25,11 +26,12 @@ OBJECT_OBSERVABLES = ("desired_pose", "bowl_pos", "spoon_to_desired_pos", "spoon
 # observations no real robot has: grain counts, the food's physical parameters, and ``object``, which holds the counts
 PRIVILEGED_OBSERVATIONS = ("spoon_load", "food_params", "object")
 
+WRENCH_OBSERVATIONS = ("robot0_eef_force", "robot0_eef_torque")
 NO_LOAD = ("robot0_eef_pos", "robot0_eef_quat", "desired_pose", "bowl_pos", "spoon_to_desired_pos")
 OBSERVATION_SETS: dict[str, tuple[str, ...]] = {
     "object": ("robot0_eef_pos", "robot0_eef_quat", "object"),
     "no-load": NO_LOAD,
-    "wrench": NO_LOAD + ("robot0_eef_force", "robot0_eef_torque"),
+    "wrench": NO_LOAD + WRENCH_OBSERVATIONS,
 }
 # the set of the low-dim configs in configs/json (tests/test_configs.py holds them to it): BC scored as well without
 # grain counts as with them (results/grid_calibrated_noload/)
@@ -43,6 +45,12 @@ def check_observation_set(name: str) -> str:
     if name not in OBSERVATION_SETS:
         raise ValueError(f"unknown observation set {name!r}; accepted: {sorted(OBSERVATION_SETS)}")
     return name
+
+
+def needs_wrench(names: list[str] | tuple[str, ...]) -> bool:
+    """Whether any of the observation sets ``names`` reads the wrist sensor (its data: ScoopGranular's
+    ``use_wrench_obs``)."""
+    return any(set(OBSERVATION_SETS[check_observation_set(name)]) & set(WRENCH_OBSERVATIONS) for name in names)
 
 
 def with_observation_set(config: dict, name: str) -> dict:

@@ -166,6 +166,12 @@ def build_parser() -> Parser:
     cli.add_image_size(p, 84, 84, old=["--camera-size"])
     add("--depth", action="store_true", help="also record <camera>_depth (metres)")
     add(
+        "--wrench",
+        action="store_true",
+        help="also record the wrist force-torque sensor (robot0_eef_force, robot0_eef_torque: the wrench "
+        "observation set's data)",
+    )
+    add(
         "--seed",
         type=cli.seed,
         default=None,
@@ -264,6 +270,7 @@ def env_kwargs_from_args(args) -> dict:
         cameras=args.camera_names or (),
         image_size=(args.camera_height, args.camera_width),
         depth=args.depth,
+        wrench=args.wrench,
     )
 
 

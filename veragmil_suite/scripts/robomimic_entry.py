@@ -22,7 +22,9 @@ import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+from veragmil_suite.data.schema import missing_observations
 from veragmil_suite.learning import robomimic_compat, robomimic_scripts
+from veragmil_suite.learning.observation_sets import WRENCH_OBSERVATIONS
 from veragmil_suite.utils import cli
 from veragmil_suite.utils.cli.handler import UsageError
 
@@ -146,6 +148,8 @@ def check_args(module_name: str, args: argparse.Namespace) -> None:
             data = cli.json_file(args.config).get("train", {}).get("data")
             if data is not None:
                 cli.check_option("--config's train.data", data, cli.robomimic_dataset)
+        if args.config is not None:
+            check_observations_recorded(args.config, args.dataset)
     if module_name == "robomimic.scripts.playback_dataset" and args.use_obs:
         if args.video_path is None:
             raise UsageError("--use-obs plays the stored observations back into a video: give --video_path")
@@ -154,6 +158,25 @@ def check_args(module_name: str, args: argparse.Namespace) -> None:
     if module_name == "robomimic.scripts.dataset_states_to_obs":
         output = os.path.join(os.path.dirname(args.dataset), args.output_name)
         cli.check_option("--output_name", output, cli.output_dataset)
+
+
+def check_observations_recorded(config_path: str, dataset: str | None) -> None:
+    """Refuses a config whose observations the dataset (``dataset``, else the config's train.data) does not hold:
+    robomimic would fail on the first one it reads, with a KeyError and its traceback."""
+    config = cli.json_file(config_path)
+    dataset = dataset or config.get("train", {}).get("data")
+    modalities = config.get("observation", {}).get("modalities", {}).get("obs", {})
+    keys = [key for names in modalities.values() for key in (names or [])]
+    if not isinstance(dataset, str) or not keys:
+        return
+    missing = missing_observations(dataset, keys)
+    if not missing:
+        return
+    if set(missing) <= set(WRENCH_OBSERVATIONS):
+        hint = "record them with the wrist sensor (veragmil-collect --wrench; veragmil-study does for the wrench set)"
+    else:
+        hint = "record them, or train on observations it holds"
+    raise UsageError(f"{dataset} holds no {', '.join(missing)} observations, which {config_path} trains on; {hint}")
 
 
 def _command(module_name: str, prepare: Callable | None = None) -> Callable[[list[str] | None], int]:

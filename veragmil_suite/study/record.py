@@ -14,6 +14,7 @@ from veragmil_suite.data.collection import record_scripted, recording_env_kwargs
 from veragmil_suite.data.datasets import merge_datasets
 from veragmil_suite.data.schema import DatasetError, demo_names, open_dataset, seeds_used
 from veragmil_suite.data.writer import updated_file
+from veragmil_suite.learning.observation_sets import WRENCH_OBSERVATIONS, needs_wrench
 from veragmil_suite.models.foods import (
     DEFAULT_PHYSICS,
     FOODS,
@@ -45,6 +46,8 @@ def _recorded(path: Path) -> dict:
             food=kwargs.get("food"),
             n_grains=kwargs.get("n_grains"),
             physics=kwargs["physics"],
+            # what the demos hold, whatever the env kwargs say
+            wrench=bool(names) and set(WRENCH_OBSERVATIONS) <= set(f["data"][names[0]]["obs"]),
             horizon=kwargs.get("horizon"),
             robot=kwargs.get("robots"),
             cameras=kwargs.get("camera_names") if kwargs.get("use_camera_obs") else [],
@@ -63,9 +66,11 @@ def check_recording(
     cameras: tuple[str, ...] = (),
     robot: str = "XArm7",
     physics: str = DEFAULT_PHYSICS,
+    wrench: bool = False,
 ) -> dict | None:
     """
     What ``path`` holds (``_recorded``) when it may be continued with these settings; None when there is no file.
+    A file with the wrist sensor observed serves a study that does not ask for it; not the other way round.
 
     Raises:
         StageError: [the file was recorded with other settings, or is not a dataset]
@@ -88,6 +93,8 @@ def check_recording(
         physics=physics,
     )
     differ = {k: (held[k], v) for k, v in wanted.items() if held[k] != v and held["demos"]}
+    if wrench and not held["wrench"] and held["demos"]:
+        differ["wrench"] = (False, True)
     if differ:
         described = ", ".join(f"{k} {a!r} (asked: {b!r})" for k, (a, b) in differ.items())
         raise StageError(f"{path} was recorded with other settings: {described}; use another output directory")
@@ -109,6 +116,7 @@ def record_food(
     progress: bool = False,
     echo: bool = False,
     physics: str = DEFAULT_PHYSICS,
+    wrench: bool = False,
 ) -> float | None:
     """
     Records ``demos`` successful scripted demos of ``food`` into ``path`` (attempt seeds from ``seed``, in
@@ -121,7 +129,7 @@ def record_food(
         StageError: [the file was recorded with other settings, or recording failed]
     """
     path = Path(path)
-    held = check_recording(path, food, profile, seed, horizon, n_grains, cameras, robot, physics)
+    held = check_recording(path, food, profile, seed, horizon, n_grains, cameras, robot, physics, wrench)
     if held is not None:
         if held["demos"] >= demos:
             return None
@@ -130,7 +138,9 @@ def record_food(
         else:
             demos, seed = demos - held["demos"], held["next_seed"]
     path.parent.mkdir(parents=True, exist_ok=True)
-    env_kwargs = recording_env_kwargs(robot, food, horizon=horizon, n_grains=n_grains, physics=physics, cameras=cameras)
+    env_kwargs = recording_env_kwargs(
+        robot, food, horizon=horizon, n_grains=n_grains, physics=physics, cameras=cameras, wrench=wrench
+    )
     call = dict(output=str(path), env_kwargs=env_kwargs, episodes=demos, profile=profile, seed=seed)
     call.update(processes=workers, ray=ray)
     log = path.with_name(f"{path.stem}.seed{seed}.log")
@@ -212,7 +222,13 @@ def food_files(path: Path, foods: list[str]) -> list[Path]:
 
 def recording_settings(settings: PipelineSettings) -> dict:
     """What a study's every recording is made with (record_food's and check_recording's keyword arguments)."""
-    return dict(horizon=settings.horizon, n_grains=settings.n_grains, robot=settings.robot, physics=settings.physics)
+    return dict(
+        horizon=settings.horizon,
+        n_grains=settings.n_grains,
+        robot=settings.robot,
+        physics=settings.physics,
+        wrench=needs_wrench(settings.obs_sets),
+    )
 
 
 def check_recordings(settings: PipelineSettings, profile: str, dataset: Path) -> None:
