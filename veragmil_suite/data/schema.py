@@ -122,7 +122,7 @@ def missing_observations(path: str | Path, keys: list[str]) -> list[str]:
     try:
         with h5py.File(path, "r") as f:
             held = [set(g["obs"].keys()) if "obs" in g else set() for g in (f["data"][n] for n in demo_names(f))]
-    except (OSError, KeyError):
+    except (OSError, KeyError, AttributeError):  # not HDF5, no data group, obs not a group
         return []
     return [key for key in dict.fromkeys(keys) if any(key not in obs for obs in held)]
 

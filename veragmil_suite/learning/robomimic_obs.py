@@ -15,11 +15,12 @@ import numpy as np
 import robosuite.macros
 from robosuite.utils.binding_utils import MjSim
 
+from veragmil_suite.learning.observation_sets import WRENCH_OBSERVATIONS
 from veragmil_suite.utils.sim_xml import source_xml
 
 # observations of the torques applied in the step, not of the state alone (accelerations, the wrist's force-torque
 # sensor): robomimic's dataset_states_to_obs, which sets each recorded state and reads it, cannot give them back
-TORQUE_DEPENDENT_OBSERVATIONS = ("robot0_joint_acc", "robot0_eef_force", "robot0_eef_torque")
+TORQUE_DEPENDENT_OBSERVATIONS = ("robot0_joint_acc", *WRENCH_OBSERVATIONS)
 
 
 def observation(env, raw: dict | None = None, postprocess: bool = False) -> dict[str, np.ndarray]:
