@@ -433,8 +433,10 @@ def test_a_shorter_recording_is_continued_to_the_demos_one_run_records(tmp_path)
     felt = tmp_path / "felt.hdf5"
     assert record_food(felt, demos=1, **dict(kwargs, wrench=True)) > 0
     assert record_food(felt, demos=1, **kwargs) is None
+    assert record_food(felt, demos=2, **kwargs) > 0  # continued with the sensor it was recorded with
     with h5py.File(felt) as f:
-        assert {"robot0_eef_force", "robot0_eef_torque"} <= set(f["data/demo_0/obs"])
+        for name in ("demo_0", "demo_1"):
+            assert {"robot0_eef_force", "robot0_eef_torque"} <= set(f[f"data/{name}/obs"])
 
 
 def test_a_study_records_on_its_physics(tmp_path):

@@ -137,6 +137,7 @@ def record_food(
             path.unlink()  # killed before its first attempt ended: nothing to continue
         else:
             demos, seed = demos - held["demos"], held["next_seed"]
+            wrench = wrench or held["wrench"]  # its demos alike: the sensor in all or none
     path.parent.mkdir(parents=True, exist_ok=True)
     env_kwargs = recording_env_kwargs(
         robot, food, horizon=horizon, n_grains=n_grains, physics=physics, cameras=cameras, wrench=wrench
