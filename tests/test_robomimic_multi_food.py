@@ -31,10 +31,12 @@ CONFIG = ROOT / "configs" / "json" / "bc.json"
 
 @pytest.fixture(scope="module")
 def mixed(tmp_path_factory):
-    """One file: a pasta demo, then a buckwheat demo and a demo with fewer pasta pieces appended to it."""
+    """One file: a pasta demo, then a buckwheat demo and a demo with fewer pasta pieces appended to it, recorded
+    with the wrist sensor (observations robomimic cannot extract from states)."""
     path = tmp_path_factory.mktemp("mixed") / "mixed.hdf5"
     for seed, (food, n_grains) in enumerate(RECORDED):
-        record_file(path, episodes=1, steps=STEPS, seed=seed, env_kwargs=tiny_env_kwargs(food, n_grains=n_grains))
+        kwargs = tiny_env_kwargs(food, n_grains=n_grains, use_wrench_obs=True)
+        record_file(path, episodes=1, steps=STEPS, seed=seed, env_kwargs=kwargs)
     return path
 
 
@@ -79,7 +81,8 @@ def test_robomimics_states_to_obs_extracts_every_demo_and_keeps_its_attributes(m
     size = CAMERA_SIZE // 2  # camera settings of robomimic's processing, which each demo's env_args take
     cameras = ["--camera_names", "overhead", "--camera_height", size, "--camera_width", size]
     args = ["--dataset", dataset, "--output_name", "extracted.hdf5", "--done_mode", "2", *cameras]
-    run_program("veragmil-robomimic-states-to-obs", *args, cwd=tmp_path)
+    out = run_program("veragmil-robomimic-states-to-obs", *args, cwd=tmp_path).stdout
+    assert f"kept the recorded {', '.join(robomimic_obs.TORQUE_DEPENDENT_OBSERVATIONS)}" in out
     with h5py.File(dataset) as ours, h5py.File(tmp_path / "extracted.hdf5") as theirs:
         assert (
             json.loads(theirs["data"].attrs["env_args"])[VARIANTS_KEY]
@@ -97,9 +100,11 @@ def test_robomimics_states_to_obs_extracts_every_demo_and_keeps_its_attributes(m
             assert (kwargs["food"], kwargs["n_grains"], kwargs["camera_heights"]) == (food, n_grains, size)
             assert extracted["obs/overhead_image"].shape == (STEPS, size, size, 3)
             np.testing.assert_array_equal(extracted["dones"][()], mine["dones"][()])
+            # every observation comes back as recorded, the sensor's and the accelerations (carried over: they
+            # read a step's torques) as well as the state's; images at another size
+            assert set(robomimic_obs.TORQUE_DEPENDENT_OBSERVATIONS) <= set(extracted["obs"])
             for key in extracted["obs"]:
-                # images: another size
-                if key not in robomimic_obs.TORQUE_DEPENDENT_OBSERVATIONS and "overhead" not in key:
+                if "overhead" not in key:
                     np.testing.assert_array_equal(extracted["obs"][key][()], mine["obs"][key][()], err_msg=key)
                     np.testing.assert_array_equal(
                         extracted["next_obs"][key][:-1], mine["next_obs"][key][:-1], err_msg=f"next_obs {key}"

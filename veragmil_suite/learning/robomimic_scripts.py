@@ -1,6 +1,6 @@
 """robomimic 0.3.0's own scripts run by our entry points (veragmil_suite.scripts.robomimic_entry), with the gaps
 of robomimic_compat's list that live in the scripts bridged: train.py's experiment folders and exit status, its
-prompts, dataset_states_to_obs.py's dataset attributes.
+prompts, dataset_states_to_obs.py's dataset attributes and the observations it cannot extract.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ import h5py
 import numpy as np
 
 from veragmil_suite.data.schema import VARIANTS_KEY
+from veragmil_suite.learning.robomimic_obs import TORQUE_DEPENDENT_OBSERVATIONS
 from veragmil_suite.utils.canonical import canonical
 
 
@@ -26,7 +27,8 @@ def prepare_states_to_obs_script(module: types.ModuleType) -> None:
     """
     Patches the namespace of robomimic.scripts.dataset_states_to_obs (imported, not yet run) for one run: its
     output is written under a temporary name beside it and renamed once complete (a failed run leaves the output
-    as it was), and each demo keeps the input's attributes (see _carry_attributes).
+    as it was), each demo keeps the input's attributes (see _carry_attributes) and its recorded torque-dependent
+    observations (see _carry_recorded_observations).
     """
     robomimic_states_to_obs = getattr(module.dataset_states_to_obs, "__wrapped__", module.dataset_states_to_obs)
 
@@ -39,6 +41,9 @@ def prepare_states_to_obs_script(module: types.ModuleType) -> None:
         try:
             robomimic_states_to_obs(args)
             _carry_attributes(args.dataset, partial)
+            carried = _carry_recorded_observations(args.dataset, partial)
+            if carried:
+                print(f"kept the recorded {', '.join(carried)}: they read a step's torques, not its state")
             os.replace(partial, output)
             print(f"renamed {os.path.basename(partial)} to {output} (written under that name until complete)")
         finally:
@@ -78,6 +83,35 @@ def _carry_attributes(source: str, output: str) -> None:
                 for key in dropped:
                     meta["env_kwargs"].pop(key, None)
                 attrs_out["env_args"] = json.dumps(meta)
+
+
+def _carry_recorded_observations(source: str, output: str) -> list[str]:
+    """
+    Writes ``source``'s recorded values of the torque-dependent observations (robomimic_obs.
+    TORQUE_DEPENDENT_OBSERVATIONS) over what robomimic read after setting each state, which is not what the robot
+    measured; returns the keys carried. A demo's next_obs the source lacks are its obs one step on.
+    """
+    carried = set()
+    with h5py.File(source, "r") as fin, h5py.File(output, "a") as fout:
+        data_in, data_out = fin["data"], fout["data"]
+        for name in data_out:
+            if name not in data_in:
+                continue
+            demo_in, demo_out = data_in[name], data_out[name]
+            for key in TORQUE_DEPENDENT_OBSERVATIONS:
+                if f"obs/{key}" not in demo_in or f"obs/{key}" not in demo_out:
+                    continue
+                recorded = demo_in[f"obs/{key}"][()]
+                if recorded.shape != demo_out[f"obs/{key}"].shape:
+                    continue
+                demo_out[f"obs/{key}"][...] = recorded
+                if f"next_obs/{key}" in demo_out:
+                    if f"next_obs/{key}" in demo_in:
+                        demo_out[f"next_obs/{key}"][...] = demo_in[f"next_obs/{key}"][()]
+                    else:
+                        demo_out[f"next_obs/{key}"][:-1] = recorded[1:]
+                carried.add(key)
+    return [key for key in TORQUE_DEPENDENT_OBSERVATIONS if key in carried]
 
 
 def experiment_dirs(config, auto_remove_exp_dir: bool = False) -> tuple[str, str | None, str]:
