@@ -20,6 +20,7 @@ from veragmil_suite.utils.sim_xml import source_xml
 
 # observations of the torques applied in the step, not of the state alone (accelerations, the wrist's force-torque
 # sensor): robomimic's dataset_states_to_obs, which sets each recorded state and reads it, cannot give them back
+# (veragmil-robomimic-states-to-obs keeps the recorded values)
 TORQUE_DEPENDENT_OBSERVATIONS = ("robot0_joint_acc", *WRENCH_OBSERVATIONS)
 
 
