@@ -11,6 +11,7 @@ import time
 import types
 from pathlib import Path
 
+import h5py
 import mujoco
 import numpy as np
 import pytest
@@ -295,3 +296,30 @@ def test_module_form_dispatches_to_the_same_commands():
     )
     assert helped.returncode == 0 and "--dataset" in helped.stdout
     assert time.time() - started < 120
+
+
+def test_recorded_observations_are_carried_only_where_their_shapes_match(tmp_path):
+    """states-to-obs' carry of the torque-dependent observations: the recorded obs over robomimic's; next_obs from the
+    recorded next_obs when it has the output's shape, else the recorded obs one step on; an obs of another shape left
+    as robomimic read it."""
+    from veragmil_suite.learning.robomimic_obs import TORQUE_DEPENDENT_OBSERVATIONS
+
+    acc, force = TORQUE_DEPENDENT_OBSERVATIONS[:2]
+    recorded = np.arange(15.0).reshape(5, 3)
+    with h5py.File(tmp_path / "source.hdf5", "w") as f:
+        f[f"data/demo_0/obs/{force}"] = recorded
+        f[f"data/demo_0/next_obs/{force}"] = np.zeros((4, 3))  # another shape than the output's
+        f[f"data/demo_0/obs/{acc}"] = np.ones((4, 3))  # another shape than the output's
+    with h5py.File(tmp_path / "output.hdf5", "w") as f:
+        for key in (acc, force):
+            f[f"data/demo_0/obs/{key}"] = np.full((5, 3), -1.0)
+            f[f"data/demo_0/next_obs/{key}"] = np.full((5, 3), -1.0)
+    carried = robomimic_scripts._carry_recorded_observations(
+        str(tmp_path / "source.hdf5"), str(tmp_path / "output.hdf5")
+    )
+    assert carried == [force]
+    with h5py.File(tmp_path / "output.hdf5") as f:
+        np.testing.assert_array_equal(f[f"data/demo_0/obs/{force}"][()], recorded)
+        np.testing.assert_array_equal(f[f"data/demo_0/next_obs/{force}"][:-1], recorded[1:])
+        np.testing.assert_array_equal(f[f"data/demo_0/next_obs/{force}"][-1], np.full(3, -1.0))
+        np.testing.assert_array_equal(f[f"data/demo_0/obs/{acc}"][()], np.full((5, 3), -1.0))

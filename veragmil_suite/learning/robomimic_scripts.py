@@ -89,7 +89,8 @@ def _carry_recorded_observations(source: str, output: str) -> list[str]:
     """
     Writes ``source``'s recorded values of the torque-dependent observations (robomimic_obs.
     TORQUE_DEPENDENT_OBSERVATIONS) over what robomimic read after setting each state, which is not what the robot
-    measured; returns the keys carried. A demo's next_obs the source lacks are its obs one step on.
+    measured; returns the keys carried. A demo's next_obs the source lacks, or holds in another shape, are its obs one
+    step on; an obs of another shape is left as robomimic read it.
     """
     carried = set()
     with h5py.File(source, "r") as fin, h5py.File(output, "a") as fout:
@@ -106,10 +107,11 @@ def _carry_recorded_observations(source: str, output: str) -> list[str]:
                     continue
                 demo_out[f"obs/{key}"][...] = recorded
                 if f"next_obs/{key}" in demo_out:
-                    if f"next_obs/{key}" in demo_in:
-                        demo_out[f"next_obs/{key}"][...] = demo_in[f"next_obs/{key}"][()]
+                    target = demo_out[f"next_obs/{key}"]
+                    if f"next_obs/{key}" in demo_in and demo_in[f"next_obs/{key}"].shape == target.shape:
+                        target[...] = demo_in[f"next_obs/{key}"][()]
                     else:
-                        demo_out[f"next_obs/{key}"][:-1] = recorded[1:]
+                        target[:-1] = recorded[1:]
                 carried.add(key)
     return [key for key in TORQUE_DEPENDENT_OBSERVATIONS if key in carried]
 
