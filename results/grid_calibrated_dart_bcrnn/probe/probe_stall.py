@@ -1,0 +1,58 @@
+"""Where BC-RNN's loaded spoon stops: the study's episodes (same seeds and bowls) rolled out by its checkpoint, the
+spoon's height above the bowl's rim, the grains in it and the size of the policy's translation and rotation actions,
+each averaged over blocks of 20 control steps (1 s). Run from the repository root after the study:
+
+    python results/grid_calibrated_dart_bcrnn/probe/probe_stall.py runs/grid_calibrated_dart_bcrnn --food rice \
+        --episodes 1 2 3
+"""
+
+import argparse
+import glob
+import json
+from pathlib import Path
+
+import numpy as np
+
+import veragmil_suite  # noqa: F401  (registers ScoopGranular)
+from veragmil_suite.evaluation.agents import EpisodeTask, _checkpoint_env, parse_spec
+
+BLOCK = 20
+
+
+def probe(path: str, food: str, episode: int, steps: int) -> dict:
+    task = EpisodeTask(
+        agent="probe", spec=parse_spec(path), food=food, episode=episode, seed=100000 + episode, horizon=steps,
+        env_kwargs={"physics": "calibrated"},
+    )  # fmt: skip
+    env, obs, act, step = _checkpoint_env(task)
+    rows, block = [], []
+    for t in range(steps):
+        action = np.asarray(act(obs))
+        obs, _, _, _ = step(action)
+        height = float(obs["robot0_eef_pos"][2] - obs["bowl_pos"][2])
+        grains = int(env._scoop_metrics()["grains_in_spoon"])
+        block.append((height, grains, np.linalg.norm(action[:3]), np.linalg.norm(action[3:6])))
+        if len(block) == BLOCK:
+            h, g, trans, rot = np.mean(block, axis=0)
+            rows.append({"s": (t + 1) // BLOCK, "height_mm": round(1000 * h, 1), "grains": round(float(g), 1),
+                         "|translation action|": round(float(trans), 3), "|rotation action|": round(float(rot), 3)})  # fmt: skip
+            block = []
+    env.close()
+    return {"food": food, "episode": episode, "by second": rows}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("study")
+    parser.add_argument("--food", default="rice")
+    parser.add_argument("--episodes", type=int, nargs="+", default=[1, 2, 3])
+    parser.add_argument("--steps", type=int, default=400)
+    args = parser.parse_args()
+    pattern = Path(args.study) / "runs" / "*_bc_rnn_*" / "*" / "models" / "model_epoch_40.pth"
+    (path,) = glob.glob(str(pattern))
+    for episode in args.episodes:
+        print(json.dumps(probe(path, args.food, episode, args.steps)))
+
+
+if __name__ == "__main__":
+    main()
