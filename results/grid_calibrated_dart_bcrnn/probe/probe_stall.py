@@ -1,7 +1,7 @@
 """Where BC-RNN's loaded spoon stops: the study's episodes (same seeds and bowls) rolled out by its checkpoint, the
 spoon's height above the bowl's rim, the grains in it, the size of the policy's translation and rotation actions and
 its mean translation action (x, y, z, as a fraction of full scale), each averaged over blocks of 20 control steps
-(1 s). Run from the repository root after the study:
+(1 s), and the share of those steps in which the spoon touches something that is not a grain (the bowl). Run from the repository root after the study:
 
     python results/grid_calibrated_dart_bcrnn/probe/probe_stall.py runs/grid_calibrated_dart_bcrnn --food rice \
         --episodes 1 2 3
@@ -20,6 +20,16 @@ from veragmil_suite.evaluation.agents import EpisodeTask, _checkpoint_env, parse
 BLOCK = 20
 
 
+def touches_bowl(env) -> bool:
+    """Whether the spoon touches anything but a grain."""
+    data = env.sim.data._data
+    pairs = data.contact.geom[: data.ncon]
+    spoon = np.isin(pairs, env.spoon_geom_ids)
+    grain = np.isin(pairs, env.grain_geom_ids)
+    other = ~(spoon | grain)
+    return bool(((spoon[:, 0] & other[:, 1]) | (spoon[:, 1] & other[:, 0])).any())
+
+
 def probe(path: str, food: str, episode: int, steps: int) -> dict:
     task = EpisodeTask(
         agent="probe", spec=parse_spec(path), food=food, episode=episode, seed=100000 + episode, horizon=steps,
@@ -32,12 +42,13 @@ def probe(path: str, food: str, episode: int, steps: int) -> dict:
         obs, _, _, _ = step(action)
         height = float(obs["robot0_eef_pos"][2] - obs["bowl_pos"][2])
         grains = int(env._scoop_metrics()["grains_in_spoon"])
-        block.append((height, grains, np.linalg.norm(action[:3]), np.linalg.norm(action[3:6]), *action[:3]))
+        block.append((height, grains, np.linalg.norm(action[:3]), np.linalg.norm(action[3:6]), touches_bowl(env), *action[:3]))
         if len(block) == BLOCK:
-            h, g, trans, rot, *xyz = np.mean(block, axis=0)
+            h, g, trans, rot, bowl, *xyz = np.mean(block, axis=0)
             rows.append({"s": (t + 1) // BLOCK, "height_mm": round(1000 * h, 1), "grains": round(float(g), 1),
                          "|translation action|": round(float(trans), 3), "|rotation action|": round(float(rot), 3),
-                         "translation action xyz": [round(float(v), 3) for v in xyz]})  # fmt: skip
+                         "translation action xyz": [round(float(v), 3) for v in xyz],
+                         "touching the bowl": round(float(bowl), 2)})  # fmt: skip
             block = []
     env.close()
     return {"food": food, "episode": episode, "by second": rows}
