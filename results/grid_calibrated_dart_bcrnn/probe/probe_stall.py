@@ -1,10 +1,13 @@
 """Where BC-RNN's loaded spoon stops: the study's episodes (same seeds and bowls) rolled out by its checkpoint, the
 spoon's height above the bowl's rim, the grains in it, the size of the policy's translation and rotation actions and
 its mean translation action (x, y, z, as a fraction of full scale), each averaged over blocks of 20 control steps
-(1 s), and the share of those steps in which the spoon touches something that is not a grain (the bowl). Run from the repository root after the study:
+(1 s), and the share of those steps in which the spoon touches something that is not a grain (the bowl); and the
+episode's lowest spoon height, step by step. With ``--expert`` the scripted expert runs the same
+bowls instead (its translation actions are its own, before the noise of ``expert-dart``). Run from the repository
+root after the study:
 
     python results/grid_calibrated_dart_bcrnn/probe/probe_stall.py runs/grid_calibrated_dart_bcrnn --food rice \
-        --episodes 1 2 3
+        --episodes 1 2 3 [--expert]
 """
 
 import argparse
@@ -15,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 import veragmil_suite  # noqa: F401  (registers ScoopGranular)
-from veragmil_suite.evaluation.agents import EpisodeTask, _checkpoint_env, parse_spec
+from veragmil_suite.evaluation.agents import EpisodeTask, _checkpoint_env, _expert_env, parse_spec
 
 BLOCK = 20
 
@@ -35,13 +38,17 @@ def probe(path: str, food: str, episode: int, steps: int) -> dict:
         agent="probe", spec=parse_spec(path), food=food, episode=episode, seed=100000 + episode, horizon=steps,
         env_kwargs={"physics": "calibrated"},
     )  # fmt: skip
-    env, obs, act, step = _checkpoint_env(task)
-    rows, block = [], []
+    env, obs, act, step = (_expert_env if path == "expert" else _checkpoint_env)(task)
+    rows, block, lowest = [], [], np.inf
     for t in range(steps):
-        action = np.asarray(act(obs))
+        action = act(obs)
+        if action is None:  # the expert's scoop is done
+            break
+        action = np.asarray(action)
         obs, _, _, _ = step(action)
         height = float(obs["robot0_eef_pos"][2] - obs["bowl_pos"][2])
         grains = int(env._scoop_metrics()["grains_in_spoon"])
+        lowest = min(lowest, height)
         block.append((height, grains, np.linalg.norm(action[:3]), np.linalg.norm(action[3:6]), touches_bowl(env), *action[:3]))
         if len(block) == BLOCK:
             h, g, trans, rot, bowl, *xyz = np.mean(block, axis=0)
@@ -51,7 +58,7 @@ def probe(path: str, food: str, episode: int, steps: int) -> dict:
                          "touching the bowl": round(float(bowl), 2)})  # fmt: skip
             block = []
     env.close()
-    return {"food": food, "episode": episode, "by second": rows}
+    return {"food": food, "episode": episode, "lowest_height_mm": round(1000 * lowest, 1), "by second": rows}
 
 
 def main() -> None:
@@ -60,9 +67,10 @@ def main() -> None:
     parser.add_argument("--food", default="rice")
     parser.add_argument("--episodes", type=int, nargs="+", default=[1, 2, 3])
     parser.add_argument("--steps", type=int, default=400)
+    parser.add_argument("--expert", action="store_true")
     args = parser.parse_args()
     pattern = Path(args.study) / "runs" / "*_bc_rnn_*" / "*" / "models" / "model_epoch_40.pth"
-    (path,) = glob.glob(str(pattern))
+    (path,) = ["expert"] if args.expert else glob.glob(str(pattern))
     for episode in args.episodes:
         print(json.dumps(probe(path, args.food, episode, args.steps)))
 
