@@ -49,7 +49,9 @@ def probe(path: str, food: str, episode: int, steps: int) -> dict:
         height = float(obs["robot0_eef_pos"][2] - obs["bowl_pos"][2])
         grains = int(env._scoop_metrics()["grains_in_spoon"])
         lowest = min(lowest, height)
-        block.append((height, grains, np.linalg.norm(action[:3]), np.linalg.norm(action[3:6]), touches_bowl(env), *action[:3]))
+        block.append(
+            (height, grains, np.linalg.norm(action[:3]), np.linalg.norm(action[3:6]), touches_bowl(env), *action[:3])
+        )
         if len(block) == BLOCK:
             h, g, trans, rot, bowl, *xyz = np.mean(block, axis=0)
             rows.append({"s": (t + 1) // BLOCK, "height_mm": round(1000 * h, 1), "grains": round(float(g), 1),
