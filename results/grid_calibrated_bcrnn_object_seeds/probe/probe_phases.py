@@ -1,12 +1,12 @@
 """How each phase of the scripted expert's recorded demos ended: its waypoint reached, or its time limit (a switch
-no observation shows). Replays each demo's seed with the expert and logs every phase change."""
+no observation shows). Replays each demo's seed with the expert (or another scripted profile, ``--profile``) and
+logs every phase change."""
 
 import argparse
 import json
 import sys
 
 import h5py
-import numpy as np
 import robosuite
 
 import veragmil_suite  # noqa: F401
@@ -37,6 +37,7 @@ def main():
     p.add_argument("data_dir")
     p.add_argument("--foods", nargs="+", default=["rice", "buckwheat", "barley", "pasta"])
     p.add_argument("--demos", type=int, default=10)
+    p.add_argument("--profile", default="expert")
     a = p.parse_args()
     for food in a.foods:
         with h5py.File(f"{a.data_dir}/{food}.hdf5", "r") as f:
@@ -45,7 +46,7 @@ def main():
             seeds = [int(f["data"][n].attrs["seed"]) for n in names]
             lens = [int(f["data"][n].attrs["num_samples"]) for n in names]
         env = robosuite.make("ScoopGranular", **kwargs)
-        op = Logged(env, "expert", seeds[0])
+        op = Logged(env, a.profile, seeds[0])
         for seed, n in zip(seeds, lens):
             reason = run_episode(env, EpisodeRecorder(env), op, 1.0, False, False, seed=seed)
             print(json.dumps({"food": food, "seed": seed, "recorded_steps": n, "reason": reason, "phases": op.log}))
