@@ -7,13 +7,12 @@ repository root after the study:
 """
 
 import argparse
-import glob
 import json
-from pathlib import Path
 
-import veragmil_suite  # noqa: F401  (registers ScoopGranular)
+from probe_stall import grid_task, study_checkpoint
+
 from veragmil_suite.environments.episode import run_until_done
-from veragmil_suite.evaluation.agents import EpisodeTask, _checkpoint_env, _policy, parse_spec
+from veragmil_suite.evaluation.agents import _checkpoint_env, _policy
 
 NEVER = 10**9
 
@@ -24,18 +23,13 @@ def main() -> None:
     parser.add_argument("--food", default="rice")
     parser.add_argument("--episodes", type=int, nargs="+", default=[0, 1, 2])
     args = parser.parse_args()
-    (path,) = glob.glob(str(Path(args.study) / "runs" / "*_bc_rnn_*" / "*" / "models" / "model_epoch_40.pth"))
-    spec = parse_spec(path)
-    policy, _ = _policy(spec.target)
+    path = study_checkpoint(args.study)
+    policy, _ = _policy(path)
     trained_horizon = policy.policy._rnn_horizon
     for reset_every in (trained_horizon, NEVER):
         policy.policy._rnn_horizon = reset_every
         for episode in args.episodes:
-            task = EpisodeTask(
-                agent="probe", spec=spec, food=args.food, episode=episode, seed=100000 + episode, horizon=400,
-                env_kwargs={"physics": "calibrated"},
-            )  # fmt: skip
-            env, obs, act, step = _checkpoint_env(task)
+            env, obs, act, step = _checkpoint_env(grid_task(path, args.food, episode, 400))
             end = run_until_done(act, step, obs, env.control_freq, 400)
             env.close()
             row = {"lstm reset every": "never" if reset_every == NEVER else reset_every, "episode": episode}

@@ -1,7 +1,8 @@
 """What the demos did where BC-RNN's spoon stalls: rolls the study's checkpoint out on one of the grid's bowls for
 ``--steps`` control steps, then lists the recorded demo states nearest the stalled spoon (its position relative to the
-bowl, and its attitude weighted 2 cm per unit of quaternion distance), each with the demo's action there (the first
-six of seven: translation and rotation, a fraction of full scale). Run from the repository root after the study:
+bowl, and its attitude weighted 2 cm per unit of quaternion distance; at most three from one demo), each with the
+demo's action there (the first six of seven: translation and rotation, a fraction of full scale). Run from the
+repository root after the study:
 
     python results/grid_calibrated_dart_bcrnn/probe/probe_nearest.py runs/grid_calibrated_dart_bcrnn --episode 1
 """
@@ -12,15 +13,17 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+from probe_stall import grid_task, study_checkpoint
 
-import veragmil_suite  # noqa: F401  (registers ScoopGranular)
-from veragmil_suite.evaluation.agents import EpisodeTask, _checkpoint_env, parse_spec
+from veragmil_suite.evaluation.agents import _checkpoint_env
 
 QUAT_WEIGHT_M = 0.02
 
 
-def spoon_state(obs: dict) -> np.ndarray:
-    return np.concatenate([np.asarray(obs["robot0_eef_pos"]) - np.asarray(obs["bowl_pos"]), obs["robot0_eef_quat"]])
+def spoon_state(obs) -> np.ndarray:
+    """The spoon's position from the bowl's rim centre and its attitude (a step's observations, or a demo's)."""
+    pos = np.asarray(obs["robot0_eef_pos"]) - np.asarray(obs["bowl_pos"])
+    return np.concatenate([pos, np.asarray(obs["robot0_eef_quat"])], axis=-1)
 
 
 def main() -> None:
@@ -31,14 +34,8 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=160)
     parser.add_argument("--nearest", type=int, default=25)
     args = parser.parse_args()
-    study = Path(args.study)
-    (path,) = glob.glob(str(study / "runs" / "*_bc_rnn_*" / "*" / "models" / "model_epoch_40.pth"))
-    (data,) = glob.glob(str(study / "data" / "*.hdf5"))
-    task = EpisodeTask(
-        agent="probe", spec=parse_spec(path), food=args.food, episode=args.episode, seed=100000 + args.episode,
-        horizon=args.steps, env_kwargs={"physics": "calibrated"},
-    )  # fmt: skip
-    env, obs, act, step = _checkpoint_env(task)
+    (data,) = glob.glob(str(Path(args.study) / "data" / "*.hdf5"))
+    env, obs, act, step = _checkpoint_env(grid_task(study_checkpoint(args.study), args.food, args.episode, args.steps))
     for _ in range(args.steps):
         action = np.asarray(act(obs))
         obs, _, _, _ = step(action)
@@ -49,8 +46,9 @@ def main() -> None:
     rows = []
     with h5py.File(data, "r") as f:
         for name, demo in f["data"].items():
-            states = np.concatenate([demo["obs"]["robot0_eef_pos"][:] - demo["obs"]["bowl_pos"][:],
-                                     demo["obs"]["robot0_eef_quat"][:]], axis=1)  # fmt: skip
+            states = spoon_state(
+                {key: demo["obs"][key][:] for key in ("robot0_eef_pos", "bowl_pos", "robot0_eef_quat")}
+            )
             quat = states[:, 3:] * np.sign(states[:, 3:] @ stall[3:])[:, None]  # q and -q are one attitude
             dist = np.linalg.norm(states[:, :3] - stall[:3], axis=1) + QUAT_WEIGHT_M * np.linalg.norm(
                 quat - stall[3:], axis=1

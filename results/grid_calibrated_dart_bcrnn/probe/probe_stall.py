@@ -19,8 +19,23 @@ import numpy as np
 
 import veragmil_suite  # noqa: F401  (registers ScoopGranular)
 from veragmil_suite.evaluation.agents import EpisodeTask, _checkpoint_env, _expert_env, parse_spec
+from veragmil_suite.study.settings import EVAL_SEED_OFFSET
 
 BLOCK = 20
+
+
+def study_checkpoint(study: str) -> str:
+    """The study's one BC-RNN checkpoint (its last epoch)."""
+    (path,) = glob.glob(str(Path(study) / "runs" / "*_bc_rnn_*" / "*" / "models" / "model_epoch_40.pth"))
+    return path
+
+
+def grid_task(path: str, food: str, episode: int, horizon: int) -> EpisodeTask:
+    """The study's evaluation episode ``episode`` of ``food`` (its seed and bowl) for checkpoint or expert ``path``."""
+    return EpisodeTask(
+        agent="probe", spec=parse_spec(path), food=food, episode=episode, seed=EVAL_SEED_OFFSET + episode,
+        horizon=horizon, env_kwargs={"physics": "calibrated"},
+    )  # fmt: skip
 
 
 def touches_bowl(env) -> bool:
@@ -34,10 +49,7 @@ def touches_bowl(env) -> bool:
 
 
 def probe(path: str, food: str, episode: int, steps: int) -> dict:
-    task = EpisodeTask(
-        agent="probe", spec=parse_spec(path), food=food, episode=episode, seed=100000 + episode, horizon=steps,
-        env_kwargs={"physics": "calibrated"},
-    )  # fmt: skip
+    task = grid_task(path, food, episode, steps)
     env, obs, act, step = (_expert_env if path == "expert" else _checkpoint_env)(task)
     rows, block, lowest = [], [], np.inf
     for t in range(steps):
@@ -71,8 +83,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=400)
     parser.add_argument("--expert", action="store_true")
     args = parser.parse_args()
-    pattern = Path(args.study) / "runs" / "*_bc_rnn_*" / "*" / "models" / "model_epoch_40.pth"
-    (path,) = ["expert"] if args.expert else glob.glob(str(pattern))
+    path = "expert" if args.expert else study_checkpoint(args.study)
     for episode in args.episodes:
         print(json.dumps(probe(path, args.food, episode, args.steps)))
 
