@@ -363,6 +363,22 @@ def test_a_study_refuses_to_mix_settings_in_one_folder_before_it_writes_anything
     assert _tree(out) == before and not (out / "data").exists()  # nothing recorded, merged or trained first
 
 
+def test_a_study_folder_named_relative_or_absolute_is_one_folder(tmp_path, monkeypatch):
+    """A study resumed with its folder spelled the other way finds its own runs, and still refuses another config."""
+    from veragmil_suite.study.settings import StageError
+    from veragmil_suite.study.training import finished_training, training_config
+
+    monkeypatch.chdir(tmp_path)
+    relative = training_config("bc", Path("study/data/expert.hdf5"), Path("study/runs"), "run", 2, 10)
+    absolute = training_config("bc", tmp_path / "study/data/expert.hdf5", tmp_path / "study/runs", "run", 2, 10)
+    (tmp_path / "study/runs").mkdir(parents=True)
+    (tmp_path / "study/runs/run.json").write_text(json.dumps(relative))
+    assert finished_training(absolute, tmp_path / "study/runs") is None  # the same run, not yet trained
+    other = training_config("bc", tmp_path / "study/data/spacemouse.hdf5", tmp_path / "study/runs", "run", 2, 10)
+    with pytest.raises(StageError, match="holds another config for run"):
+        finished_training(other, tmp_path / "study/runs")
+
+
 def test_a_study_of_other_foods_leaves_another_studys_merged_dataset_alone(tmp_path):
     """Its training runs would otherwise be taken for runs on the foods asked (and the merged file was rewritten
     before the study refused)."""

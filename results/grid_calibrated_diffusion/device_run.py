@@ -4,8 +4,9 @@ Diffusion Policy for the grid on the calibrated physics, trained on a GPU machin
 ``prepare`` (here, with the study's own arguments) writes each Diffusion Policy run's training config where
 ``veragmil-study`` looks for it (so the study skips the training and evaluates the checkpoint put beside it), the same
 config for the GPU machine (training on CUDA with 4 loader workers, a checkpoint every 4 epochs, no TensorBoard:
-tensorboardX is not there) and one copy of the dataset without simulator states (``slim_dataset.py``: the machine
-takes 64 MiB of files). Several training seeds make several runs.
+tensorboardX is not there) and a copy of each data profile's dataset without simulator states (``slim_dataset.py``:
+the machine takes 64 MiB of files). Several training seeds and data profiles make several runs; ``--only`` keeps
+those whose experiment name matches.
 
 ``train`` (there) trains every run side by side until its time budget, then turns each run's newest checkpoint into
 the one the rollouts use (``--keep``, at the path ``rebuild`` writes here) and writes the first run's EMA weights as
@@ -33,6 +34,7 @@ import io
 import json
 import math
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -55,7 +57,7 @@ def _configs(folder: Path) -> list[dict]:
     return [json.loads(p.read_text()) for p in sorted(folder.glob("*.json"), key=lambda p: int(p.stem))]
 
 
-def prepare(study_args: list[str]) -> None:
+def prepare(study_args: list[str], only: str | None = None, save_every: int = SAVE_EVERY, workers: int = 4) -> None:
     from slim_dataset import slim  # beside this script
 
     from veragmil_suite.scripts.study import build_parser, settings_from_args
@@ -63,27 +65,32 @@ def prepare(study_args: list[str]) -> None:
 
     settings = settings_from_args(build_parser().parse_args(study_args))
     runs = [r for r in training_runs(settings) if r["algo"] == "diffusion_policy"]
+    if only is not None:
+        runs = [r for r in runs if re.fullmatch(only, r["config"]["experiment"]["name"])]
     if not runs:
-        sys.exit("these study arguments make no diffusion_policy run")
-    (data,) = {r["config"]["train"]["data"] for r in runs}
+        sys.exit("these study arguments make no diffusion_policy run" + (f" named {only}" if only else ""))
     for folder in (DEVICE_CONFIGS, STUDY_CONFIGS):
         shutil.rmtree(folder, ignore_errors=True)
         folder.mkdir(parents=True)
+    datasets = {}  # the study's dataset -> its slim copy for the machine, one per data profile
     for i, run in enumerate(runs):
         config = run["config"]
         name = config["experiment"]["name"]
         Path(config["train"]["output_dir"]).mkdir(parents=True, exist_ok=True)
         (Path(config["train"]["output_dir"]) / f"{name}.json").write_text(json.dumps(config, indent=4))
+        data = config["train"]["data"]
+        if data not in datasets:
+            datasets[data] = GPU_DIR / Path(data).name
+            print(f"{data}: {slim(data, str(datasets[data]), config)} demos")
         device = copy.deepcopy(config)
-        device["train"].update(data=str(GPU_DIR / "dataset.hdf5"), output_dir=str(WORK / "runs"), cuda=True)
-        device["train"]["num_data_workers"] = 4
-        device["experiment"]["save"]["every_n_epochs"] = SAVE_EVERY
+        device["train"].update(data=str(datasets[data]), output_dir=str(WORK / "runs"), cuda=True)
+        device["train"]["num_data_workers"] = workers
+        device["experiment"]["save"]["every_n_epochs"] = save_every
         device["experiment"]["logging"]["log_tb"] = False
         (DEVICE_CONFIGS / f"{i}.json").write_text(json.dumps(device, indent=4))
         (STUDY_CONFIGS / f"{i}.json").write_text(json.dumps(config, indent=4))
         steps = config["experiment"]["epoch_every_n_steps"]
         print(f"run {i}: {name}, {config['train']['num_epochs']} x {steps} steps")
-    print(f"{slim(data, str(GPU_DIR / 'dataset.hdf5'), runs[0]['config'])} demos")
 
 
 def _ema_blob(checkpoint: str) -> bytes:
@@ -234,7 +241,11 @@ def rebuild(folders: list[str], run: int, early_dir: Path | None) -> None:
 def main() -> None:
     p = argparse.ArgumentParser()
     sub = p.add_subparsers(dest="verb", required=True)
-    sub.add_parser("prepare").add_argument("study_args", nargs=argparse.REMAINDER)
+    q = sub.add_parser("prepare")
+    q.add_argument("--only", help="the runs whose experiment name matches this regular expression")
+    q.add_argument("--save-every", type=int, default=SAVE_EVERY, help="epochs between checkpoints on the machine")
+    q.add_argument("--workers", type=int, default=4, help="data loader workers of each run on the machine")
+    q.add_argument("study_args", nargs=argparse.REMAINDER, help="-- then veragmil-study's arguments")
     t = sub.add_parser("train")
     t.add_argument("--out", type=Path, required=True)
     t.add_argument("--until", type=float, required=True, help="when training stops (Unix time)")
@@ -255,7 +266,7 @@ def main() -> None:
         q.add_argument("--early-dir", type=Path, help="where a run stopped before its last epoch goes")
     args = p.parse_args()
     if args.verb == "prepare":
-        prepare([a for a in args.study_args if a != "--"])
+        prepare([a for a in args.study_args if a != "--"], args.only, args.save_every, args.workers)
     elif args.verb == "train":
         train(args.out, args.until, args.keep, args.early_dir)
     elif args.verb == "evaluate":

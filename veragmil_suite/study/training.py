@@ -61,11 +61,19 @@ def _checkpoints(config: dict) -> dict[int, Path]:
     return {int(p.stem.split("_")[-1]): p for p in runs[-1].glob("model_epoch_*.pth")}
 
 
-def _without_save_epochs(config: dict) -> dict:
-    """The config less its extra checkpoint epochs, which change what is saved, not what is trained."""
+PATH_KEYS = ("data", "output_dir")  # the train section's paths: a folder named relative or absolute is one folder
+
+
+def _what_is_trained(config: dict) -> dict:
+    """The config less its extra checkpoint epochs (they change what is saved, not what is trained), its paths
+    absolute."""
     out = json.loads(json.dumps(config))
     if isinstance(out, dict):
         out.get("experiment", {}).get("save", {}).pop("epochs", None)
+        train = out.get("train", {})
+        for key in PATH_KEYS:
+            if isinstance(train.get(key), str):
+                train[key] = os.path.abspath(train[key])
     return out
 
 
@@ -81,7 +89,7 @@ def finished_training(config: dict, work_dir: Path) -> dict[int, Path] | None:
     if not config_file.exists():
         return None
     held = json.loads(config_file.read_text())
-    if _without_save_epochs(held) != _without_save_epochs(config):
+    if _what_is_trained(held) != _what_is_trained(config):
         name = config["experiment"]["name"]
         raise StageError(f"{config_file} holds another config for {name}; use another output directory")
     found = _checkpoints(config)
