@@ -251,6 +251,30 @@ def test_an_episode_on_the_gpu_is_journaled_apart_from_the_cpus():
     assert Journal.key(task) == Journal.key(replace(task, agent="b"))
 
 
+def test_a_checkpoint_named_relative_or_absolute_resumes_the_same_episodes(tmp_path, monkeypatch):
+    """A journal written with a checkpoint's (or a video's) relative path is read back by a run that names them
+    absolutely, and the other way round; another file is another agent."""
+    monkeypatch.chdir(tmp_path)
+    path = tmp_path / JOURNAL_NAME
+    record = EpisodeRecord(**{**json.loads(JOURNAL_LINE_NOW)["record"], "agent": "a"})
+    relative = EpisodeTask("a", AgentSpec("checkpoint", "runs/model_epoch_5.pth"), "pasta", 0, 0, 80, CHEAP)
+    absolute = replace(relative, spec=AgentSpec("checkpoint", str(tmp_path / "runs/model_epoch_5.pth")))
+    # the key as runs before this spelling wrote it: the path as given
+    old_key = json.dumps(["checkpoint", "runs/model_epoch_5.pth", "pasta", 0, 80, CHEAP], sort_keys=True)
+    path.write_text(json.dumps({"key": old_key, "record": record.to_dict()}) + "\n")
+    assert Journal(path, resume=True).get(absolute) is not None
+    Journal(path, resume=False)  # sets that journal aside
+    Journal(path, resume=True).add(absolute, record)
+    assert Journal(path, resume=True).get(relative) is not None
+    other = replace(relative, spec=AgentSpec("checkpoint", "runs/model_epoch_6.pth"))
+    assert Journal(path, resume=True).get(other) is None
+    video = tmp_path / "videos" / "a.mp4"
+    video.parent.mkdir()
+    video.write_bytes(b"")
+    Journal(path, resume=True).add(replace(relative, video_path="videos/a.mp4"), record)
+    assert Journal(path, resume=True).get(replace(absolute, video_path=str(video))) is not None
+
+
 def test_agent_arguments_name_and_check_specs(tmp_path):
     checkpoint = tmp_path / "model_epoch_5.pth"
     checkpoint.write_bytes(b"")

@@ -11,6 +11,7 @@ import contextlib
 import hashlib
 import itertools
 import json
+import os
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
@@ -250,8 +251,9 @@ class Journal:
                 entry = json.loads(line)
             except ValueError:
                 continue  # the last line of a killed run
-            env_kwargs = json.loads(entry["key"])[5]  # Journal.key's sixth part
-            self.records[entry["key"]] = EpisodeRecord.from_dict(entry["record"], env_kwargs)
+            parts = json.loads(entry["key"])
+            env_kwargs = parts[5]  # Journal.key's sixth part
+            self.records[self._canonical_key(parts)] = EpisodeRecord.from_dict(entry["record"], env_kwargs)
 
     def describe_set_aside(self) -> str:
         """One line on a journal set aside: where it went, and how its platform differs from this one."""
@@ -275,6 +277,16 @@ class Journal:
             parts += [task.video_path, task.video_camera]
         if task.policy_device != "cpu":
             parts += [task.policy_device]
+        return Journal._canonical_key(parts)
+
+    @staticmethod
+    def _canonical_key(parts: list) -> str:
+        """The key with its files' paths absolute: a checkpoint or video named relative or absolute is one file."""
+        parts = list(parts)
+        if parts[0] != "expert":  # a checkpoint's or dataset's path, not a profile
+            parts[1] = os.path.abspath(parts[1])
+        if len(parts) >= 8:  # a video's path and camera follow the env kwargs
+            parts[6] = os.path.abspath(parts[6])
         return canonical(parts)
 
     def get(self, task: EpisodeTask) -> EpisodeRecord | None:
