@@ -29,6 +29,8 @@ add grid_calibrated_spacemouse "spacemouse operator"
 add grid_calibrated_spacemouse_noload "spacemouse BC no-load obs"
 add grid_calibrated_spacemouse_bcq "spacemouse BCQ no-load obs"
 add grid_calibrated_spacemouse_bcrnn "spacemouse BC-RNN no-load obs"
+add grid_calibrated_diffusion_9k "expert Diffusion Policy no-load obs"
+add grid_calibrated_diffusion_9k "spacemouse Diffusion Policy no-load obs"
 veragmil-pool-results "$OUT" "${A[@]}"
 python results/grid_calibrated_tables/paper_tables.py "$OUT/seeds/table.csv" > results/grid_calibrated_tables/paper_tables.md
 cp -r "$OUT"/{table.md,table.csv,stages.md,stages.csv,seeds.md,seeds.csv,success.png,seeds} results/grid_calibrated_tables/
