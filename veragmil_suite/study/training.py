@@ -70,8 +70,8 @@ def _what_is_trained(config: dict) -> dict:
     out = json.loads(json.dumps(config))
     if isinstance(out, dict):
         out.get("experiment", {}).get("save", {}).pop("epochs", None)
-        train = out.get("train", {})
-        for key in PATH_KEYS:
+        train = out.get("train")
+        for key in PATH_KEYS if isinstance(train, dict) else ():
             if isinstance(train.get(key), str):
                 train[key] = os.path.abspath(train[key])
     return out
