@@ -48,6 +48,7 @@ STUDY_CONFIGS = GPU_DIR / "study"  # each run's own config (the study's paths), 
 PIECES = 8
 PER_CALL = 4  # pieces back in a call: 4 x 16 MiB of the machine's 64 MiB
 SAVE_EVERY = 4  # epochs between checkpoints on the machine
+WORKERS = 4  # data loader workers of each run on the machine
 WORK = Path("/tmp/dp")
 KEPT = WORK / "kept.json"  # run number -> the checkpoint train --keep wrote and its figures
 LOG_TAIL = 2**17  # bytes of each run's training log that come back
@@ -57,7 +58,9 @@ def _configs(folder: Path) -> list[dict]:
     return [json.loads(p.read_text()) for p in sorted(folder.glob("*.json"), key=lambda p: int(p.stem))]
 
 
-def prepare(study_args: list[str], only: str | None = None, save_every: int = SAVE_EVERY, workers: int = 4) -> None:
+def prepare(
+    study_args: list[str], only: str | None = None, save_every: int = SAVE_EVERY, workers: int = WORKERS
+) -> None:
     from slim_dataset import slim  # beside this script
 
     from veragmil_suite.scripts.study import build_parser, settings_from_args
@@ -244,7 +247,7 @@ def main() -> None:
     q = sub.add_parser("prepare")
     q.add_argument("--only", help="the runs whose experiment name matches this regular expression")
     q.add_argument("--save-every", type=int, default=SAVE_EVERY, help="epochs between checkpoints on the machine")
-    q.add_argument("--workers", type=int, default=4, help="data loader workers of each run on the machine")
+    q.add_argument("--workers", type=int, default=WORKERS, help="data loader workers of each run on the machine")
     q.add_argument("study_args", nargs=argparse.REMAINDER, help="-- then veragmil-study's arguments")
     t = sub.add_parser("train")
     t.add_argument("--out", type=Path, required=True)
