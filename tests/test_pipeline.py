@@ -379,6 +379,34 @@ def test_a_study_folder_named_relative_or_absolute_is_one_folder(tmp_path, monke
         finished_training(other, tmp_path / "study/runs")
 
 
+def test_a_killed_training_of_the_same_config_is_resumed_and_another_retrained(tmp_path, monkeypatch):
+    """The study's training goes on from a killed run's resume state (veragmil-train --resume) when the run held
+    this config; a run saved at other epochs is trained again from the start, saving both."""
+    from veragmil_suite.study import training
+    from veragmil_suite.study.settings import StageError
+
+    commands = []
+
+    def run_logged(command, *args, **kwargs):
+        commands.append(command)
+        return 1.0
+
+    monkeypatch.setattr(training, "run_logged", run_logged)
+    work = tmp_path / "runs"
+    work.mkdir()
+    config = training.training_config("bc", tmp_path / "data.hdf5", work, "run", 2, 10)
+    (work / "run.json").write_text(json.dumps(config))
+    (work / "run" / "stamp").mkdir(parents=True)
+    with pytest.raises(StageError):  # the stand-in trains nothing
+        training.train_checkpoint(config, work)
+    assert commands[-1][-1] == "--resume" and (work / "run" / "stamp").exists()
+    extra = training.training_config("bc", tmp_path / "data.hdf5", work, "run", 2, 10, save_epochs=[1])
+    with pytest.raises(StageError):
+        training.train_checkpoint(extra, work)
+    assert "--resume" not in commands[-1] and not (work / "run").exists()
+    assert json.loads((work / "run.json").read_text())["experiment"]["save"]["epochs"] == [1]
+
+
 def test_a_study_of_other_foods_leaves_another_studys_merged_dataset_alone(tmp_path):
     """Its training runs would otherwise be taken for runs on the foods asked (and the merged file was rewritten
     before the study refused)."""

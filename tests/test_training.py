@@ -25,13 +25,14 @@ EPISODE_STEPS = 20
 ROLLOUT_HORIZON = 5
 
 
-def _run(command, *args, timeout=300):
+def _run(command, *args, timeout=300, env=None):
     return subprocess.run(
         [str(BIN / command), *map(str, args)],
         capture_output=True,
         text=True,
         timeout=timeout,
         stdin=subprocess.DEVNULL,  # a prompt would fail instead of hanging
+        env=env,
     )
 
 
@@ -258,3 +259,73 @@ def test_bc_rnn_trains_on_normalized_observations_once_and_its_policy_normalizes
     batch = {"obs": {k: torch.as_tensor(v)[None] for k, v in sample["obs"].items()}}
     kept = Algo.postprocess_batch_for_training(policy.policy, batch, obs_normalization_stats=stats)
     np.testing.assert_allclose(kept["obs"][keys[0]][0].numpy(), sample["obs"][keys[0]], rtol=1e-6)
+
+
+def _resumable_config(dataset, out_dir, experiment, epochs, **algo):
+    """BC on the tiny dataset for ``epochs`` epochs of 3 steps, no validation or rollouts, the last epoch saved."""
+    Path(out_dir).mkdir(exist_ok=True)
+    config = _tiny_config("bc", dataset, out_dir, experiment, num_epochs=epochs, hdf5_validation_filter_key=None)
+    spec = json.loads(config.read_text())
+    spec["experiment"].update(
+        validate=False, render_video=False, rollout=dict(spec["experiment"]["rollout"], enabled=False)
+    )
+    spec["experiment"]["save"]["every_n_epochs"] = epochs
+    spec["algo"]["optim_params"]["policy"]["learning_rate"].update(algo)
+    config.write_text(json.dumps(spec))
+    return config
+
+
+def _final_weights(out_dir, experiment, epochs):
+    import torch
+
+    (checkpoint,) = (Path(out_dir) / experiment).glob(f"*/models/model_epoch_{epochs}.pth")
+    return torch.load(checkpoint, map_location="cpu", weights_only=False)["model"]
+
+
+def test_a_killed_training_resumes_to_the_weights_of_an_uninterrupted_one(low_dim_dataset, tmp_path):
+    """The resume state (optimizers, schedules, random generators) is saved at an epoch's start; a run killed
+    mid-way and started again with --resume skips the finished epochs and ends with the same weights, bit for bit,
+    as one that ran through. A changed config is refused (exit 2) and the state kept."""
+    import os
+    import signal
+    import time
+
+    import torch
+
+    epochs = 40
+    env = dict(os.environ, VERAGMIL_TORCH_THREADS="1", VERAGMIL_RESUME_EVERY_S="0")
+    whole = _resumable_config(low_dim_dataset, tmp_path / "whole", "run", epochs)
+    done = _run("veragmil-train", "--config", whole, env=env)
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    assert not list((tmp_path / "whole" / "run").glob("*/resume.pth"))  # a finished run keeps no resume state
+
+    out = tmp_path / "killed"
+    config = _resumable_config(low_dim_dataset, out, "run", epochs)
+    quiet = dict(stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, stdin=subprocess.DEVNULL)
+    process = subprocess.Popen([str(BIN / "veragmil-train"), "--config", str(config)], env=env, **quiet)
+    deadline = time.monotonic() + 240
+    while not list(out.glob("run/*/resume.pth")) and process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    process.send_signal(signal.SIGKILL)
+    process.wait()
+    (state,) = out.glob("run/*/resume.pth")
+    assert not list(out.glob(f"run/*/models/model_epoch_{epochs}.pth")), "the run ended before it was killed"
+    killed_after = torch.load(state, weights_only=False)["epoch"]
+    assert 1 <= killed_after < epochs
+
+    other = _resumable_config(low_dim_dataset, out, "run", epochs, initial=0.5)
+    refused = _run("veragmil-train", "--config", other, "--resume", env=env)
+    assert refused.returncode == 2, refused.stdout[-3000:] + refused.stderr[-3000:]
+    assert "was trained with another config" in refused.stderr and state.exists()
+
+    config = _resumable_config(low_dim_dataset, out, "run", epochs)
+    resumed = _run("veragmil-train", "--config", config, "--resume", env=env)
+    assert resumed.returncode == 0, resumed.stdout[-3000:] + resumed.stderr[-3000:]
+    assert len(list(out.glob("run/*"))) == 1 and not state.exists()  # the killed run's folder, finished
+    log = next(out.glob("run/*/logs/log.txt")).read_text()
+    assert f"after epoch {killed_after}" in log
+    assert json.loads(next(out.glob("run/*/training_seconds.json")).read_text())["seconds"] > 0
+    expected, got = _final_weights(tmp_path / "whole", "run", epochs), _final_weights(out, "run", epochs)
+    assert expected.keys() == got.keys()
+    for key in expected:
+        assert torch.equal(expected[key], got[key]), key

@@ -19,6 +19,7 @@ import h5py
 import numpy as np
 
 from veragmil_suite.data.schema import VARIANTS_KEY
+from veragmil_suite.learning import training_resume
 from veragmil_suite.learning.robomimic_obs import TORQUE_DEPENDENT_OBSERVATIONS
 from veragmil_suite.utils.canonical import canonical
 
@@ -160,18 +161,23 @@ class TrainOutcome:
         return self.error is not None
 
 
-def prepare_train_script(module: types.ModuleType) -> TrainOutcome:
+def prepare_train_script(module: types.ModuleType, resume: bool = False) -> TrainOutcome:
     """
     Patches the namespace of robomimic.scripts.train (imported, not yet run) for one run.
 
     Its train() is wrapped to record any error (its main() prints the error and returns normally) and to run
     with $VERAGMIL_TORCH_THREADS torch threads when that is set; its DataLoader keeps the last validation batch
-    and rejects a training split smaller than one batch.
+    and rejects a training split smaller than one batch; its train_utils save the run's resume state and write
+    checkpoints whole (veragmil_suite.learning.training_resume). With ``resume`` the newest run of the experiment
+    that holds a resume state goes on from it, when its config is this one (else ResumeRefused); a new run starts
+    when there is none.
     """
     import torch  # heavy: torch, only when used
 
     outcome = TrainOutcome()
     robomimic_train = getattr(module.train, "__wrapped__", module.train)
+    train_utils = getattr(module, "TrainUtils", None)
+    train_utils = getattr(train_utils, "_train_utils", train_utils)  # robomimic's, under a wrapper of an earlier run
     threads = os.environ.get("VERAGMIL_TORCH_THREADS")
 
     @functools.wraps(robomimic_train)
@@ -182,12 +188,32 @@ def prepare_train_script(module: types.ModuleType) -> TrainOutcome:
             # train() calls torch.set_num_threads(2) itself: that call takes our count instead
             torch.set_num_threads = lambda _: set_num_threads(int(threads))
         try:
-            return robomimic_train(config, device=device)
+            utils = _resuming_train_utils(config, resume)
+            module.TrainUtils = utils
+            result = robomimic_train(config, device=device)
+            utils.finished()
+            return result
         except Exception as err:
             outcome.error = err
             raise
         finally:
             torch.set_num_threads = set_num_threads
+            if train_utils is not None:
+                module.TrainUtils = train_utils
+
+    def _resuming_train_utils(config, resume: bool) -> training_resume.ResumingTrainUtils:
+        every_s = training_resume.resume_every_s()
+        run_dir = training_resume.resumable_run(config.train.output_dir, config.experiment.name) if resume else None
+        if run_dir is None:
+            if resume:
+                print(f"nothing to resume under {config.train.output_dir}/{config.experiment.name}: a new run")
+            return training_resume.ResumingTrainUtils(train_utils, every_s=every_s)
+        held = training_resume.held_config(run_dir)
+        if held is None or training_resume.comparable_config(held) != training_resume.comparable_config(config):
+            raise training_resume.ResumeRefused(
+                f"{run_dir} was trained with another config; train this one without --resume (a new run)"
+            )
+        return training_resume.ResumingTrainUtils(train_utils, run_dir, training_resume.load(run_dir), every_s)
 
     def data_loader(dataset, batch_size=1, drop_last=False, **kwargs):
         from torch.utils.data import DataLoader  # heavy: torch, only when used

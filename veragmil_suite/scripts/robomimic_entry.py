@@ -23,7 +23,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from veragmil_suite.data.schema import missing_observations
-from veragmil_suite.learning import robomimic_compat, robomimic_scripts
+from veragmil_suite.learning import robomimic_compat, robomimic_scripts, training_resume
 from veragmil_suite.learning.observation_sets import WRENCH_OBSERVATIONS
 from veragmil_suite.utils import cli
 from veragmil_suite.utils.cli.handler import UsageError
@@ -123,6 +123,13 @@ def build_parser(module_name: str) -> cli.Parser:
         action.type = kind
         if isinstance(kind, cli.ListOf):
             action.__class__ = cli.Flatten
+    if module_name == SCRIPTS["train"]:
+        parser.add_argument(
+            "--resume",
+            action="store_true",
+            help="go on with the newest run of this experiment that was stopped (same config), from the state it "
+            "saved last (every $VERAGMIL_RESUME_EVERY_S seconds, default 120); a new run when there is none",
+        )
     return parser
 
 
@@ -180,14 +187,15 @@ def check_observations_recorded(config_path: str, dataset: str | None) -> None:
 
 
 def _command(module_name: str, prepare: Callable | None = None) -> Callable[[list[str] | None], int]:
-    """The console program of a robomimic script: our parse (kinds, spellings, checks), then the script's own main
-    block on the parsed arguments, under cli.command's handler."""
+    """The console program of a robomimic script: our parse (kinds, spellings, checks), ``prepare(module, args)``
+    of the script's module, then the script's own main block on the parsed arguments, under cli.command's
+    handler."""
 
     @cli.command(lambda: build_parser(module_name))
     def main(args: argparse.Namespace) -> int:
         check_args(module_name, args)
         module = importlib.import_module(module_name)
-        outcome = prepare(module) if prepare is not None else None
+        outcome = prepare(module, args) if prepare is not None else None
         code = cli.main_block(module)
         saved_argv = sys.argv
         sys.argv = [module.__file__]
@@ -196,6 +204,8 @@ def _command(module_name: str, prepare: Callable | None = None) -> Callable[[lis
                 exec(code, module.__dict__)
         finally:
             sys.argv = saved_argv
+        if outcome is not None and isinstance(outcome.error, training_resume.ResumeRefused):
+            raise UsageError(str(outcome.error))
         if outcome is not None and outcome.failed:
             print(f"veragmil: training failed: {outcome.error!r}", file=sys.__stderr__)
             return 1
@@ -204,15 +214,19 @@ def _command(module_name: str, prepare: Callable | None = None) -> Callable[[lis
     return main
 
 
-train_main = _command(SCRIPTS["train"], prepare=robomimic_scripts.prepare_train_script)
-train_main.__doc__ = "veragmil-train: robomimic's train.py (--config, --algo, --name, --dataset, --debug)."
+train_main = _command(
+    SCRIPTS["train"], prepare=lambda module, args: robomimic_scripts.prepare_train_script(module, resume=args.resume)
+)
+train_main.__doc__ = "veragmil-train: robomimic's train.py (--config, --algo, --name, --dataset, --debug, --resume)."
 run_agent_main = _command(SCRIPTS["run-agent"])
 run_agent_main.__doc__ = "veragmil-run-agent: robomimic's run_trained_agent.py (--agent, --n_rollouts, ...)."
 get_dataset_info_main = _command(SCRIPTS["dataset-info"])
 get_dataset_info_main.__doc__ = "veragmil-robomimic-dataset-info: robomimic's get_dataset_info.py (--dataset, ...)."
 playback_dataset_main = _command(SCRIPTS["playback"])
 playback_dataset_main.__doc__ = "veragmil-robomimic-playback: robomimic's playback_dataset.py (--dataset, ...)."
-dataset_states_to_obs_main = _command(SCRIPTS["states-to-obs"], prepare=robomimic_scripts.prepare_states_to_obs_script)
+dataset_states_to_obs_main = _command(
+    SCRIPTS["states-to-obs"], prepare=lambda module, args: robomimic_scripts.prepare_states_to_obs_script(module)
+)
 dataset_states_to_obs_main.__doc__ = "veragmil-robomimic-states-to-obs: robomimic's dataset_states_to_obs.py."
 
 

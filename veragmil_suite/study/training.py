@@ -10,9 +10,8 @@ import shutil
 from pathlib import Path
 
 from veragmil_suite.learning.algorithms import ALGORITHMS
-from veragmil_suite.learning.observation_sets import (
-    with_observation_set,
-)
+from veragmil_suite.learning.observation_sets import with_observation_set
+from veragmil_suite.learning.training_resume import comparable_config, training_seconds
 from veragmil_suite.study.logged_run import TRAINING_PROGRESS, LogProgress, console, run_logged
 from veragmil_suite.study.settings import ROBOMIMIC_TORCH_THREADS, StageError
 from veragmil_suite.utils.asset_paths import config_path
@@ -61,19 +60,12 @@ def _checkpoints(config: dict) -> dict[int, Path]:
     return {int(p.stem.split("_")[-1]): p for p in runs[-1].glob("model_epoch_*.pth")}
 
 
-PATH_KEYS = ("data", "output_dir")  # the train section's paths: a folder named relative or absolute is one folder
-
-
 def _what_is_trained(config: dict) -> dict:
     """The config less its extra checkpoint epochs (they change what is saved, not what is trained), its paths
     absolute."""
-    out = json.loads(json.dumps(config))
+    out = comparable_config(config)
     if isinstance(out, dict):
         out.get("experiment", {}).get("save", {}).pop("epochs", None)
-        train = out.get("train")
-        for key in PATH_KEYS if isinstance(train, dict) else ():
-            if isinstance(train.get(key), str):
-                train[key] = os.path.abspath(train[key])
     return out
 
 
@@ -108,8 +100,9 @@ def train_checkpoint(
     """
     Trains with veragmil-train (with ``torch_threads`` torch threads when given, else $VERAGMIL_TORCH_THREADS or
     robomimic's 2; with ``progress``, a bar of its epochs, and with ``echo`` robomimic's output) unless a finished
-    run of the same config holding every checkpoint asked for is there; returns the checkpoints by epoch and the
-    wall time (None when skipped).
+    run of the same config holding every checkpoint asked for is there; a killed run of the same config goes on
+    from its resume state. Returns the checkpoints by epoch and the wall time (None when skipped; for a resumed
+    run, its training time over all pieces).
 
     Raises:
         StageError: [training failed or wrote no last checkpoint, or the run's folder holds another config]
@@ -123,23 +116,29 @@ def train_checkpoint(
     if found is not None:
         say(f"skipping training {name}: its checkpoints are there ({found[epochs].parent})")
         return found, None
+    resume = False
     if config_file.exists():
-        # killed, or saved at other epochs: train again, saving both
         held = json.loads(config_file.read_text())
-        saved = set(held["experiment"]["save"].get("epochs", [])) | set(config["experiment"]["save"]["epochs"])
-        config = json.loads(json.dumps(config))
-        config["experiment"]["save"]["epochs"] = sorted(saved - {epochs})
-        shutil.rmtree(Path(config["train"]["output_dir"]) / name, ignore_errors=True)
+        if comparable_config(held) == comparable_config(config):
+            resume = True  # killed: veragmil-train goes on from the run's resume state, when it saved one
+        else:
+            # saved at other epochs: train again, saving both
+            saved = set(held["experiment"]["save"].get("epochs", [])) | set(config["experiment"]["save"]["epochs"])
+            config = json.loads(json.dumps(config))
+            config["experiment"]["save"]["epochs"] = sorted(saved - {epochs})
+            shutil.rmtree(Path(config["train"]["output_dir"]) / name, ignore_errors=True)
     config_file.write_text(json.dumps(config, indent=4))
     environ = {}
     if torch_threads is not None:
         environ = {"VERAGMIL_TORCH_THREADS": str(torch_threads), "OMP_NUM_THREADS": str(torch_threads)}
-    command = [*console("veragmil-train"), "--config", str(config_file)]
+    command = [*console("veragmil-train"), "--config", str(config_file), *(["--resume"] if resume else [])]
     bar = LogProgress(epochs, TRAINING_PROGRESS, name, "epoch", echo) if progress else None
     seconds = run_logged(command, work_dir / f"{name}.log", f"training {name}", environ=environ, progress=bar)
     found = _checkpoints(config)
     if not wanted <= set(found):
         raise StageError(f"training {name} wrote no last checkpoint under {config['train']['output_dir']}/{name}")
+    if resume:  # the run's own record covers the pieces before this one too
+        seconds = training_seconds(found[epochs].parent.parent) or seconds
     return found, seconds
 
 
