@@ -220,3 +220,24 @@ def test_robosuite_make_refuses_a_control_rate_it_would_hang_on(control_freq):
 
     with pytest.raises(ValueError, match="control_freq must be a number of Hz of at least 1"):
         robosuite.make("ScoopGranular", robots="XArm7", control_freq=control_freq, has_offscreen_renderer=False)
+
+
+@pytest.mark.parametrize(
+    "name,value,message",
+    [
+        ("VERAGMIL_TORCH_THREADS", "two", "$VERAGMIL_TORCH_THREADS: must be a positive integer, got 'two'"),
+        ("VERAGMIL_TORCH_THREADS", "0", "$VERAGMIL_TORCH_THREADS: must be a positive integer, got 0"),
+        ("VERAGMIL_RESUME_EVERY_S", "-5", "$VERAGMIL_RESUME_EVERY_S: must be a finite number in [0, inf), got '-5'"),
+        (
+            "VERAGMIL_RESUME_EVERY_S",
+            "soon",
+            "$VERAGMIL_RESUME_EVERY_S: must be a finite number in [0, inf), got 'soon'",
+        ),
+    ],
+)
+def test_a_malformed_number_in_the_environment_gets_one_clear_line(name, value, message, tmp_path, capsys, monkeypatch):
+    """A training would read it only after loading its data (a traceback, exit 1); every program checks it first."""
+    monkeypatch.setenv(name, value)
+    before = set(tmp_path.rglob("*"))
+    config = ROOT / "configs" / "json" / "bc.json"
+    _run_and_check("veragmil-train", ["--config", str(config), "--dataset", SAMPLE], message, tmp_path, before, capsys)

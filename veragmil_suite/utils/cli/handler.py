@@ -7,12 +7,13 @@ from __future__ import annotations
 import argparse
 import errno
 import functools
+import os
 import sys
 from collections.abc import Callable
 from typing import Any
 
 from veragmil_suite.utils.cli.files import one_line
-from veragmil_suite.utils.cli.kinds import Kind
+from veragmil_suite.utils.cli.kinds import Kind, count, non_negative
 
 
 class UsageError(Exception):
@@ -51,6 +52,21 @@ def check_option(option: str, value: str, kind: Kind) -> Any:
         raise UsageError(f"{option}: {error}") from None
 
 
+# the numbers programs read from the environment, with the kind of value each takes
+ENVIRONMENT_SETTINGS = {
+    "VERAGMIL_TORCH_THREADS": count,  # torch threads of a training run or a policy
+    "VERAGMIL_RESUME_EVERY_S": non_negative,  # seconds between saves of a training's resume state
+}
+
+
+def check_environment() -> None:
+    """Refuses a malformed ENVIRONMENT_SETTINGS value before a program runs (a set but empty one is unset)."""
+    for name, kind in ENVIRONMENT_SETTINGS.items():
+        value = os.environ.get(name)
+        if value:
+            check_option(f"${name}", value, kind)
+
+
 def _expected(error: BaseException) -> bool:
     if isinstance(error, UsageError):
         return True
@@ -71,8 +87,9 @@ def command(build_parser: Callable[[], argparse.ArgumentParser], interrupted: st
     Makes ``run(args) -> int`` a console program's ``main(argv=None) -> int`` (the exit status, also for --help and
     a value argparse refused): parses ``argv`` with ``build_parser()`` (kept as ``main.build_parser`` for
     tests/test_cli.py), runs, and turns an expected error
-    (UsageError, our dataset and Ray errors, an OSError about the user's files, disk or addresses) into one line on
-    stderr and exit status 2, and Ctrl-C into one line (``interrupted``) and 130.
+    (UsageError, our dataset and Ray errors, an OSError about the user's files, disk or addresses, a malformed
+    ENVIRONMENT_SETTINGS value) into one line on stderr and exit status 2, and Ctrl-C into one line
+    (``interrupted``) and 130.
     """
 
     def decorate(run: Callable[[argparse.Namespace], int | None]) -> Callable[[list[str] | None], int]:
@@ -84,6 +101,7 @@ def command(build_parser: Callable[[], argparse.ArgumentParser], interrupted: st
             except SystemExit as stop:  # argparse printed --help, or the bad value in one line
                 return stop.code if isinstance(stop.code, int) else (0 if stop.code is None else 2)
             try:
+                check_environment()
                 return int(run(args) or 0)
             except KeyboardInterrupt:
                 print(f"\n{parser.prog}: {interrupted}", file=sys.stderr)
