@@ -90,17 +90,21 @@ def restore(model, state: dict) -> None:
         torch.cuda.set_rng_state_all(rng["cuda"])
 
 
-def save(run_dir: str | Path, state: dict) -> None:
-    """Writes ``state`` as the run's resume file, under a temporary name first."""
-    import torch  # heavy: torch, only when used
-
-    path = Path(run_dir) / RESUME_FILE
-    partial = path.with_name(f".{RESUME_FILE}.{os.getpid()}.partial")
+def _write_whole(path: Path, write) -> None:
+    """``write(partial)`` to a temporary name beside ``path``, then renamed to it: a kill leaves the old file."""
+    partial = path.with_name(f".{path.name}.{os.getpid()}.partial")
     try:
-        torch.save(state, partial)
+        write(partial)
         os.replace(partial, path)
     finally:
         partial.unlink(missing_ok=True)
+
+
+def save(run_dir: str | Path, state: dict) -> None:
+    """Writes ``state`` as the run's resume file."""
+    import torch  # heavy: torch, only when used
+
+    _write_whole(Path(run_dir) / RESUME_FILE, lambda partial: torch.save(state, partial))
 
 
 def load(run_dir: str | Path) -> dict | None:
@@ -209,33 +213,36 @@ class ResumingTrainUtils:
 
         model.on_epoch_end = after_restore
 
+    @property
+    def skipping(self) -> bool:
+        """Whether the loop is in an epoch the resumed state has finished."""
+        return 0 < self._epoch <= self.done
+
     def rollout_with_stats(self, *args, **kwargs):
-        if self._epoch <= self.done:
+        if self.skipping:
             return {}, None
         return self._train_utils.rollout_with_stats(*args, **kwargs)
 
     def save_model(self, model, config, env_meta, shape_meta, ckpt_path, obs_normalization_stats=None):
-        if self._epoch <= self.done:
+        if self.skipping:
             return
-        partial = os.path.join(os.path.dirname(ckpt_path), f".{os.path.basename(ckpt_path)}.partial")
-        try:
-            self._train_utils.save_model(
+        _write_whole(
+            Path(ckpt_path),
+            lambda partial: self._train_utils.save_model(
                 model=model,
                 config=config,
                 env_meta=env_meta,
                 shape_meta=shape_meta,
-                ckpt_path=partial,
+                ckpt_path=str(partial),
                 obs_normalization_stats=obs_normalization_stats,
-            )
-            os.replace(partial, ckpt_path)
-        finally:
-            if os.path.exists(partial):
-                os.remove(partial)
+            ),
+        )
 
     def finished(self) -> None:
         """The run ended: its training time is written and its resume state is no longer needed."""
         if self.run_dir is not None:
-            (self.run_dir / SECONDS_FILE).write_text(json.dumps({"seconds": round(self.seconds(), 1)}) + "\n")
+            text = json.dumps({"seconds": round(self.seconds(), 1)}) + "\n"
+            _write_whole(self.run_dir / SECONDS_FILE, lambda partial: partial.write_text(text))
             (self.run_dir / RESUME_FILE).unlink(missing_ok=True)
 
 
