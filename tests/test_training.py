@@ -317,6 +317,7 @@ def test_a_killed_training_resumes_to_the_weights_of_an_uninterrupted_one(low_di
     refused = _run("veragmil-train", "--config", other, "--resume", env=env)
     assert refused.returncode == 2, refused.stdout[-3000:] + refused.stderr[-3000:]
     assert "was trained with another config" in refused.stderr and state.exists()
+    assert "Traceback" not in refused.stdout + refused.stderr
 
     config = _resumable_config(low_dim_dataset, out, "run", epochs)
     resumed = _run("veragmil-train", "--config", config, "--resume", env=env)

@@ -26,8 +26,9 @@ RESUME_FORMAT = 1
 RESUME_EVERY_S = 120.0
 
 
-class ResumeRefused(ValueError):
-    """The run to resume was started with another config."""
+class ResumeRefused(BaseException):
+    """The run to resume was started with another config. A BaseException: robomimic's train script catches every
+    Exception and prints it with its traceback; this one reaches the entry point, which says it in one line."""
 
 
 def resume_every_s() -> float:

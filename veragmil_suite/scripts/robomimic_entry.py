@@ -202,10 +202,10 @@ def _command(module_name: str, prepare: Callable | None = None) -> Callable[[lis
         try:
             with robomimic_scripts.no_prompts(), cli.parse_args_answering(lambda parser: args):
                 exec(code, module.__dict__)
+        except training_resume.ResumeRefused as refused:
+            raise UsageError(str(refused)) from None
         finally:
             sys.argv = saved_argv
-        if outcome is not None and isinstance(outcome.error, training_resume.ResumeRefused):
-            raise UsageError(str(outcome.error))
         if outcome is not None and outcome.failed:
             print(f"veragmil: training failed: {outcome.error!r}", file=sys.__stderr__)
             return 1
