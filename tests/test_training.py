@@ -282,7 +282,9 @@ def _final_weights(out_dir, experiment, epochs):
     return torch.load(checkpoint, map_location="cpu", weights_only=False)["model"]
 
 
-def test_a_killed_training_resumes_to_the_weights_of_an_uninterrupted_one(low_dim_dataset, tmp_path):
+def test_a_killed_training_resumes_to_the_weights_of_an_uninterrupted_one(
+    low_dim_dataset, tmp_path, capsys, monkeypatch
+):
     """The resume state (optimizers, schedules, random generators) is saved at an epoch's start; a run killed
     mid-way and started again with --resume skips the finished epochs and ends with the same weights, bit for bit,
     as one that ran through. A changed config is refused (exit 2) and the state kept."""
@@ -292,11 +294,16 @@ def test_a_killed_training_resumes_to_the_weights_of_an_uninterrupted_one(low_di
 
     import torch
 
+    from veragmil_suite.scripts.robomimic_entry import train_main
+
     epochs = 40
     env = dict(os.environ, VERAGMIL_TORCH_THREADS="1", VERAGMIL_RESUME_EVERY_S="0")
     whole = _resumable_config(low_dim_dataset, tmp_path / "whole", "run", epochs)
-    done = _run("veragmil-train", "--config", whole, env=env)
-    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    monkeypatch.setenv("VERAGMIL_TORCH_THREADS", "1")
+    monkeypatch.setenv("VERAGMIL_RESUME_EVERY_S", "0")
+    streams = sys.stdout, sys.stderr
+    assert train_main(["--config", str(whole)]) == 0  # the uninterrupted run, in this process
+    assert (sys.stdout, sys.stderr) == streams  # robomimic pointed them at its log; the entry point gives them back
     assert not list((tmp_path / "whole" / "run").glob("*/resume.pth"))  # a finished run keeps no resume state
 
     out = tmp_path / "killed"
@@ -314,10 +321,11 @@ def test_a_killed_training_resumes_to_the_weights_of_an_uninterrupted_one(low_di
     assert 1 <= killed_after < epochs
 
     other = _resumable_config(low_dim_dataset, out, "run", epochs, initial=0.5)
-    refused = _run("veragmil-train", "--config", other, "--resume", env=env)
-    assert refused.returncode == 2, refused.stdout[-3000:] + refused.stderr[-3000:]
-    assert "was trained with another config" in refused.stderr and state.exists()
-    assert "Traceback" not in refused.stdout + refused.stderr
+    capsys.readouterr()
+    assert train_main(["--config", str(other), "--resume"]) == 2  # in this process: the refusal comes before training
+    refused = capsys.readouterr()
+    assert f"veragmil-train: {state.parent} was trained with another config" in refused.err and state.exists()
+    assert "Traceback" not in refused.out + refused.err
 
     config = _resumable_config(low_dim_dataset, out, "run", epochs)
     resumed = _run("veragmil-train", "--config", config, "--resume", env=env)

@@ -197,7 +197,7 @@ def _command(module_name: str, prepare: Callable | None = None) -> Callable[[lis
         module = importlib.import_module(module_name)
         outcome = prepare(module, args) if prepare is not None else None
         code = cli.main_block(module)
-        saved_argv = sys.argv
+        saved = sys.argv, sys.stdout, sys.stderr
         sys.argv = [module.__file__]
         try:
             with robomimic_scripts.no_prompts(), cli.parse_args_answering(lambda parser: args):
@@ -205,7 +205,8 @@ def _command(module_name: str, prepare: Callable | None = None) -> Callable[[lis
         except training_resume.ResumeRefused as refused:
             raise UsageError(str(refused)) from None
         finally:
-            sys.argv = saved_argv
+            # robomimic's train script points stdout and stderr at its log for good: a caller's streams come back
+            sys.argv, sys.stdout, sys.stderr = saved
         if outcome is not None and outcome.failed:
             print(f"veragmil: training failed: {outcome.error!r}", file=sys.__stderr__)
             return 1
