@@ -25,14 +25,13 @@ EPISODE_STEPS = 20
 ROLLOUT_HORIZON = 5
 
 
-def _run(command, *args, timeout=300, env=None):
+def _run(command, *args, timeout=300):
     return subprocess.run(
         [str(BIN / command), *map(str, args)],
         capture_output=True,
         text=True,
         timeout=timeout,
         stdin=subprocess.DEVNULL,  # a prompt would fail instead of hanging
-        env=env,
     )
 
 
@@ -288,7 +287,6 @@ def test_a_killed_training_resumes_to_the_weights_of_an_uninterrupted_one(
     """The resume state (optimizers, schedules, random generators) is saved at an epoch's start; a run killed
     mid-way and started again with --resume skips the finished epochs and ends with the same weights, bit for bit,
     as one that ran through. A changed config is refused (exit 2) and the state kept."""
-    import os
     import signal
     import time
 
@@ -297,10 +295,9 @@ def test_a_killed_training_resumes_to_the_weights_of_an_uninterrupted_one(
     from veragmil_suite.scripts.robomimic_entry import train_main
 
     epochs = 40
-    env = dict(os.environ, VERAGMIL_TORCH_THREADS="1", VERAGMIL_RESUME_EVERY_S="0")
-    whole = _resumable_config(low_dim_dataset, tmp_path / "whole", "run", epochs)
-    monkeypatch.setenv("VERAGMIL_TORCH_THREADS", "1")
+    monkeypatch.setenv("VERAGMIL_TORCH_THREADS", "1")  # for this process's runs and the processes it starts
     monkeypatch.setenv("VERAGMIL_RESUME_EVERY_S", "0")
+    whole = _resumable_config(low_dim_dataset, tmp_path / "whole", "run", epochs)
     streams = sys.stdout, sys.stderr
     assert train_main(["--config", str(whole)]) == 0  # the uninterrupted run, in this process
     assert (sys.stdout, sys.stderr) == streams  # robomimic pointed them at its log; the entry point gives them back
@@ -309,7 +306,7 @@ def test_a_killed_training_resumes_to_the_weights_of_an_uninterrupted_one(
     out = tmp_path / "killed"
     config = _resumable_config(low_dim_dataset, out, "run", epochs)
     quiet = dict(stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, stdin=subprocess.DEVNULL)
-    process = subprocess.Popen([str(BIN / "veragmil-train"), "--config", str(config)], env=env, **quiet)
+    process = subprocess.Popen([str(BIN / "veragmil-train"), "--config", str(config)], **quiet)
     deadline = time.monotonic() + 240
     while not list(out.glob("run/*/resume.pth")) and process.poll() is None and time.monotonic() < deadline:
         time.sleep(0.01)
@@ -328,7 +325,7 @@ def test_a_killed_training_resumes_to_the_weights_of_an_uninterrupted_one(
     assert "Traceback" not in refused.out + refused.err
 
     config = _resumable_config(low_dim_dataset, out, "run", epochs)
-    resumed = _run("veragmil-train", "--config", config, "--resume", env=env)
+    resumed = _run("veragmil-train", "--config", config, "--resume")
     assert resumed.returncode == 0, resumed.stdout[-3000:] + resumed.stderr[-3000:]
     assert len(list(out.glob("run/*"))) == 1 and not state.exists()  # the killed run's folder, finished
     log = next(out.glob("run/*/logs/log.txt")).read_text()

@@ -117,35 +117,39 @@ def _carry_recorded_observations(source: str, output: str) -> list[str]:
     return [key for key in TORQUE_DEPENDENT_OBSERVATIONS if key in carried]
 
 
-def experiment_dirs(config, auto_remove_exp_dir: bool = False) -> tuple[str, str | None, str]:
+def experiment_dirs(
+    config, auto_remove_exp_dir: bool = False, run_dir: str | os.PathLike | None = None
+) -> tuple[str, str | None, str]:
     """
     Replaces robomimic's get_exp_dir: <output_dir>/<experiment name>/<timestamp>/{logs, models, videos}.
 
     A relative output_dir is taken from the working directory (robomimic took it from its own package folder in
     site-packages). An existing experiment folder is kept and the run goes into a new timestamped folder beside
     the earlier ones: no prompt, no deletion (auto_remove_exp_dir is accepted and ignored). Runs started in the
-    same second get a numbered suffix.
+    same second get a numbered suffix. ``run_dir``: an existing run folder to go on in (a resumed run), its
+    folders kept.
 
     Returns:
         3-tuple: log folder, model folder (None when saving is disabled), video folder
     """
-    base = os.path.join(os.path.abspath(os.path.expanduser(config.train.output_dir)), config.experiment.name)
-    stamp = time.strftime("%Y%m%d%H%M%S")
-    os.makedirs(base, exist_ok=True)
-    run_dir, suffix = os.path.join(base, stamp), 0
-    while True:
-        try:
-            os.makedirs(run_dir)
-            break
-        except FileExistsError:
-            suffix += 1
-            run_dir = os.path.join(base, f"{stamp}_{suffix}")
+    if run_dir is None:
+        base = os.path.join(os.path.abspath(os.path.expanduser(config.train.output_dir)), config.experiment.name)
+        stamp = time.strftime("%Y%m%d%H%M%S")
+        os.makedirs(base, exist_ok=True)
+        run_dir, suffix = os.path.join(base, stamp), 0
+        while True:
+            try:
+                os.makedirs(run_dir)
+                break
+            except FileExistsError:
+                suffix += 1
+                run_dir = os.path.join(base, f"{stamp}_{suffix}")
     model_dir = os.path.join(run_dir, "models") if config.experiment.save.enabled else None
     log_dir = os.path.join(run_dir, "logs")
     video_dir = os.path.join(run_dir, "videos")
     for folder in (model_dir, log_dir, video_dir):
         if folder is not None:
-            os.makedirs(folder)
+            os.makedirs(folder, exist_ok=True)
     return log_dir, model_dir, video_dir
 
 

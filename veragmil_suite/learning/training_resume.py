@@ -175,16 +175,10 @@ class ResumingTrainUtils:
         return getattr(self._train_utils, name)
 
     def get_exp_dir(self, config, auto_remove_exp_dir: bool = False):
-        if self.run_dir is None:
-            log_dir, model_dir, video_dir = self._train_utils.get_exp_dir(config, auto_remove_exp_dir)
-            self.run_dir = Path(log_dir).parent
-            return log_dir, model_dir, video_dir
-        dirs = [self.run_dir / "logs", self.run_dir / "models" if config.experiment.save.enabled else None]
-        dirs.append(self.run_dir / "videos")
-        for folder in dirs:
-            if folder is not None:
-                folder.mkdir(exist_ok=True)
-        return tuple(None if d is None else str(d) for d in dirs)
+        """The run's folders (robomimic_scripts.experiment_dirs): ``run_dir``'s when resuming, else a new run's."""
+        dirs = self._train_utils.get_exp_dir(config, auto_remove_exp_dir, run_dir=self.run_dir)
+        self.run_dir = Path(dirs[0]).parent
+        return dirs
 
     def run_epoch(self, model, data_loader, epoch, validate=False, **kwargs):
         if not validate:
