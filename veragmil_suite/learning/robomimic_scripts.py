@@ -117,6 +117,21 @@ def _carry_recorded_observations(source: str, output: str) -> list[str]:
     return [key for key in TORQUE_DEPENDENT_OBSERVATIONS if key in carried]
 
 
+def _new_run_folder(config) -> str:
+    """Creates <output_dir>/<experiment name>/<timestamp>[_N], N numbering runs started in the same second."""
+    base = os.path.join(os.path.abspath(os.path.expanduser(config.train.output_dir)), config.experiment.name)
+    stamp = time.strftime("%Y%m%d%H%M%S")
+    os.makedirs(base, exist_ok=True)
+    run_dir, suffix = os.path.join(base, stamp), 0
+    while True:
+        try:
+            os.makedirs(run_dir)
+            return run_dir
+        except FileExistsError:
+            suffix += 1
+            run_dir = os.path.join(base, f"{stamp}_{suffix}")
+
+
 def experiment_dirs(
     config, auto_remove_exp_dir: bool = False, run_dir: str | os.PathLike | None = None
 ) -> tuple[str, str | None, str]:
@@ -133,17 +148,7 @@ def experiment_dirs(
         3-tuple: log folder, model folder (None when saving is disabled), video folder
     """
     if run_dir is None:
-        base = os.path.join(os.path.abspath(os.path.expanduser(config.train.output_dir)), config.experiment.name)
-        stamp = time.strftime("%Y%m%d%H%M%S")
-        os.makedirs(base, exist_ok=True)
-        run_dir, suffix = os.path.join(base, stamp), 0
-        while True:
-            try:
-                os.makedirs(run_dir)
-                break
-            except FileExistsError:
-                suffix += 1
-                run_dir = os.path.join(base, f"{stamp}_{suffix}")
+        run_dir = _new_run_folder(config)
     model_dir = os.path.join(run_dir, "models") if config.experiment.save.enabled else None
     log_dir = os.path.join(run_dir, "logs")
     video_dir = os.path.join(run_dir, "videos")
