@@ -22,7 +22,7 @@ PY
 }
 add grid_calibrated_noload "expert operator"
 add grid_calibrated_noload "expert BC no-load obs"
-add grid_calibrated_bcrnn_seeds "expert BC-RNN no-load obs"
+add grid_calibrated_bcrnn_50k_seeds "expert BC-RNN no-load obs"
 add grid_calibrated_bcq "expert BCQ no-load obs"
 add grid_calibrated_diffusion_seeds "expert Diffusion Policy no-load obs"
 add grid_calibrated_spacemouse "spacemouse operator"
