@@ -12,13 +12,13 @@ if os.environ.get("PYTEST_XDIST_WORKER"):
 
 
 def pytest_configure(config):
-    # make test runs the rest in two xdist workers, then these in one process with the machine to themselves: their
+    # make test runs these in one process at normal priority and the rest beside them under SCHED_IDLE: their
     # deadlines (staleness, heartbeats, a browser's pace) measure real time, which a neighbouring test would steal
     config.addinivalue_line("markers", "realtime: measures real time; run without other tests beside it")
 
 
 def pytest_ignore_collect(collection_path, config):
-    """``-m realtime`` (make test's second run) imports only the test files that name the marker: importing the
+    """``-m realtime`` (make test's real-time run) imports only the test files that name the marker: importing the
     others (torch, robomimic, robosuite) cost 8 of the run's 10 seconds of collection, for tests it then deselects."""
     if config.getoption("markexpr") != "realtime" or not collection_path.name.startswith("test_"):
         return None
