@@ -54,14 +54,12 @@ TEST_TIMEOUT_S ?= 600
 # and clocks most of the time); the real-time tests' report is printed after the rest's.
 REALTIME_LOG := build/realtime-tests.log
 
-test: test-setup
-	$(BIN)/ruff check veragmil_suite tests scripts benchmarks docs/scoop_png.py
-	$(BIN)/ruff format --check veragmil_suite tests scripts benchmarks docs/scoop_png.py
+test: test-setup lint
 	@mkdir -p build
-	$(BIN)/python -m pytest -q -m realtime --timeout $(TEST_TIMEOUT_S) --durations 10 tests > $(REALTIME_LOG) 2>&1 & realtime=$$!; \
+	$(BIN)/python -m pytest -q -m realtime --timeout $(TEST_TIMEOUT_S) --durations 10 tests > $(REALTIME_LOG) 2>&1 & realtime_pid=$$!; \
 	chrt --idle 0 $(BIN)/python -m pytest -q -n 2 --dist loadgroup -m "not realtime" --timeout $(TEST_TIMEOUT_S) \
 		--durations 10 tests; rest=$$?; \
-	wait $$realtime; realtime=$$?; echo "real-time tests (run beside the rest):"; cat $(REALTIME_LOG); \
+	wait $$realtime_pid; realtime=$$?; echo "real-time tests (run beside the rest):"; cat $(REALTIME_LOG); \
 	exit $$(( rest || realtime ))
 
 lint: setup

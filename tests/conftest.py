@@ -14,7 +14,7 @@ if os.environ.get("PYTEST_XDIST_WORKER"):
 def pytest_configure(config):
     # make test runs these in one process at normal priority and the rest beside them under SCHED_IDLE: their
     # deadlines (staleness, heartbeats, a browser's pace) measure real time, which a neighbouring test would steal
-    config.addinivalue_line("markers", "realtime: measures real time; run without other tests beside it")
+    config.addinivalue_line("markers", "realtime: measures real time; run with no other test competing for the CPU")
 
 
 def pytest_ignore_collect(collection_path, config):
