@@ -42,7 +42,9 @@ def _first_module(*names: str):
     raise ModuleNotFoundError(f"none of {names} in this checkout")
 
 
-def _child(food: str, episodes: int, lift_steps: int, sleep_off: bool, physics: str | None = None) -> dict:
+def _child(
+    food: str, episodes: int, lift_steps: int, sleep_off: bool, physics: str | None = None, n_grains: int | None = None
+) -> dict:
     """One side's figures, in the process of that side's checkout and MuJoCo (only API both sides have)."""
     import time  # in the child, from that side's checkout
 
@@ -68,6 +70,8 @@ def _child(food: str, episodes: int, lift_steps: int, sleep_off: bool, physics: 
         kwargs["sleep_tolerance"] = None
     if physics is not None:
         kwargs["physics"] = physics
+    if n_grains is not None:
+        kwargs["n_grains"] = n_grains
     env = robosuite.make("ScoopGranular", **kwargs)
     expert = ScriptedScooper(env, "expert")
 
@@ -104,7 +108,7 @@ def _run_side(name: str, checkout: Path, extra_path: str | None, args) -> dict:
     code = (
         f"import json, sys; sys.path.insert(0, {str(Path(__file__).resolve().parent)!r}); import bench_against as b; "
         f"print('RESULT ' + json.dumps(b._child({args.food!r}, {args.episodes}, {args.lift_steps}, "
-        f"{name == 'this' and args.sleep == 'off'}, {args.physics if name == 'this' else None!r})))"
+        f"{name == 'this' and args.sleep == 'off'}, {args.physics if name == 'this' else None!r}, {args.n_grains!r})))"
     )
     out = subprocess.run([sys.executable, "-c", code], env=env, cwd=checkout, capture_output=True, text=True)
     lines = [line for line in out.stdout.splitlines() if line.startswith("RESULT ")]
@@ -126,6 +130,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--lift-steps", type=int, default=200, help="steps of robosuite's Lift timed per side")
     parser.add_argument("--sleep", choices=("on", "off"), default="on", help="this checkout's island sleeping")
     parser.add_argument("--physics", help="this checkout's physics (calibrated or table1; default: its default)")
+    parser.add_argument("--n-grains", type=int, help="grains in the bowl, both sides (default: the food's own)")
     parser.add_argument("--cache-root", help="settled piles cached per side under this folder (default: shared)")
     args = parser.parse_args(argv)
     if not (args.base / "veragmil_suite" / "__init__.py").is_file():
@@ -138,6 +143,8 @@ def main(argv: list[str] | None = None) -> None:
         parser.error(f"unknown food {args.food!r}; accepted foods: {', '.join(FOODS)}")
     if args.episodes < 1 or args.rounds < 1:
         parser.error(f"--episodes and --rounds must be at least 1, got {args.episodes} and {args.rounds}")
+    if args.n_grains is not None and args.n_grains < 1:
+        parser.error(f"--n-grains must be at least 1, got {args.n_grains}")
 
     print(f"{'round':<6} {'side':<5} {'mujoco':<7} {'Lift/s':>7} {'steps/s':>8} {'vs Lift':>8} {'success':>8}")
     ratios, lift_ratios = [], []

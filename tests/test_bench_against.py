@@ -13,7 +13,8 @@ def test_both_sides_run_their_own_checkout_and_the_ratio_is_printed(tmp_path):
     base = tmp_path / "base"
     for folder in ("veragmil_suite", "models", "configs"):
         shutil.copytree(ROOT / folder, base / folder, ignore=shutil.ignore_patterns("__pycache__", "checkpoints"))
-    args = ["--base", str(base), "--food", "pasta", "--episodes", "1", "--rounds", "1", "--lift-steps", "5"]
+    args = ["--base", str(base), "--food", "pasta", "--n-grains", "12", "--episodes", "1", "--rounds", "1"]
+    args += ["--lift-steps", "5"]
     out = run_script(SCRIPT, *args, "--sleep", "off", "--cache-root", tmp_path / "cache").stdout
     rows = [line.split() for line in out.splitlines() if line.startswith("1 ")]
     assert [row[1] for row in rows] == ["base", "this"]
@@ -29,3 +30,8 @@ def test_a_base_without_the_package_is_refused_by_name(tmp_path):
 def test_an_unknown_food_is_refused_naming_the_accepted_ones():
     result = run_script(SCRIPT, "--base", ROOT, "--food", "caviar", check=False)
     assert result.returncode == 2 and "unknown food 'caviar'; accepted foods: rice" in result.stderr
+
+
+def test_a_bowl_without_grains_is_refused():
+    result = run_script(SCRIPT, "--base", ROOT, "--n-grains", "0", check=False)
+    assert result.returncode == 2 and "--n-grains must be at least 1, got 0" in result.stderr
