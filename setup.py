@@ -74,6 +74,7 @@ setup(
             "veragmil-split=veragmil_suite.scripts.dataset_tools:split_main",
             "veragmil-replay=veragmil_suite.scripts.dataset_tools:replay_main",
             "veragmil-render-obs=veragmil_suite.scripts.dataset_tools:render_obs_main",
+            "veragmil-drop-noops=veragmil_suite.scripts.dataset_tools:drop_noops_main",
             "veragmil-train=veragmil_suite.scripts.robomimic_entry:train_main",
             "veragmil-run-agent=veragmil_suite.scripts.robomimic_entry:run_agent_main",
             "veragmil-robomimic-dataset-info=veragmil_suite.scripts.robomimic_entry:get_dataset_info_main",

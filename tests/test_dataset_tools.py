@@ -1,4 +1,5 @@
-"""Dataset tools on files recorded by veragmil_suite.data.recording: info, merge, split, replay, render-obs, and
+"""Dataset tools on files recorded by veragmil_suite.data.recording: info, merge, split, replay, render-obs,
+drop-noops, and
 robomimic's own get_dataset_info through our entry point (its playback_dataset and dataset_states_to_obs:
 test_robomimic_multi_food.py, on a file of several foods)."""
 
@@ -14,6 +15,7 @@ from helpers.recording import CAMERA_SIZE, record_file, tiny_env_kwargs
 
 from veragmil_suite.data.schema import open_dataset
 from veragmil_suite.scripts.dataset_tools import (
+    drop_noops_main,
     info_main,
     merge_main,
     render_obs_main,
@@ -148,6 +150,59 @@ def test_render_obs_reproduces_the_recording_and_renders_other_cameras(files, tm
         kwargs = json.loads(f["data"].attrs["env_args"])["env_kwargs"]
         assert kwargs["camera_names"] == ["agentview", "overhead"] and kwargs["camera_heights"] == 48
         assert kwargs["camera_widths"] == 64 and kwargs["camera_depths"] is False
+
+
+def test_drop_noops_keeps_every_other_step_joins_next_obs_and_leaves_out_an_all_noop_demo(files, tmp_path, capsys):
+    """A teleoperator's released input (zero actions) is cut out of every per-step array; next_obs of the step
+    before a cut is the observation after it; a demo of pauses only leaves the file and its masks."""
+    pasta, _ = files
+    paused = tmp_path / "paused.hdf5"
+    shutil.copy(pasta, paused)
+    cut = [2, 3, STEPS - 1]  # a pause of two steps and the last step
+    with h5py.File(paused, "r+") as f:
+        actions = f["data/demo_0/actions"][()]
+        actions[cut] = 0.0
+        actions[5] = 0.004  # small, not zero: kept unless the threshold takes it
+        f["data/demo_0/actions"][...] = actions
+        f["data/demo_1/actions"][...] = 0.0
+    out = tmp_path / "no_noops.hdf5"
+    assert drop_noops_main([str(paused), "--output", str(out)]) == 0
+    assert f"dropped {len(cut) + STEPS} no-op steps of {2 * STEPS}" in capsys.readouterr().out
+    keep = [i for i in range(STEPS) if i not in cut]
+    with h5py.File(paused) as a, open_dataset(out) as b:
+        assert list(b["data"]) == ["demo_0"] and b["data"].attrs["total"] == len(keep)
+        src, dst = a["data/demo_0"], b["data/demo_0"]
+        assert dst.attrs["num_samples"] == len(keep) and dst.attrs["noop_steps_dropped"] == len(cut)
+        for key in ("actions", "states", "rewards", "obs/robot0_eef_pos", "obs/object", "obs/overhead_image"):
+            np.testing.assert_array_equal(dst[key][()], src[key][()][keep])
+        assert dst["obs/overhead_image"].compression == src["obs/overhead_image"].compression == "gzip"
+        for key in ("robot0_eef_pos", "overhead_image"):
+            # each kept step's next observation is the next kept step's observation; the last is the demo's own
+            np.testing.assert_array_equal(dst[f"next_obs/{key}"][:-1], src[f"obs/{key}"][()][keep[1:]])
+            np.testing.assert_array_equal(dst[f"next_obs/{key}"][-1], src[f"next_obs/{key}"][STEPS - 1])
+        assert dst["dones"][-1] == src["dones"][STEPS - 1]
+        for key, members in b["mask"].items():
+            assert set(members[()]) <= {b"demo_0"}, key
+        assert {m.decode() for k in ("train", "valid") for m in b["mask"][k][()]} == {"demo_0"}
+        record = json.loads(b["data"].attrs["noops_dropped"])
+        assert record["steps_before"] == 2 * STEPS and record["steps_after"] == len(keep)
+    info = _robomimic("veragmil-robomimic-dataset-info", "--dataset", out, cwd=tmp_path)
+    assert "total trajectories: 1" in info and f"total transitions: {len(keep)}" in info
+    # a threshold takes small actions too
+    loose = tmp_path / "loose.hdf5"
+    assert drop_noops_main([str(paused), "-o", str(loose), "--threshold", "0.01"]) == 0
+    with h5py.File(loose) as f:
+        assert f["data/demo_0"].attrs["num_samples"] == len(keep) - 1
+
+    # bad input: one line, status 2, and the file already there is left as it was
+    before = out.read_bytes()
+    assert drop_noops_main([str(paused), "-o", str(out)]) == 2
+    assert "exists (use --force to overwrite it)" in capsys.readouterr().err
+    assert drop_noops_main([str(paused), "-o", str(paused), "--force"]) == 2
+    assert "is also the input: write the copy to a new file" in capsys.readouterr().err
+    assert drop_noops_main([str(paused), "-o", str(tmp_path / "x.hdf5"), "--threshold", "-0.1"]) == 2
+    assert "--threshold" in capsys.readouterr().err and not (tmp_path / "x.hdf5").exists()
+    assert out.read_bytes() == before
 
 
 def _robomimic(command, *args, cwd):

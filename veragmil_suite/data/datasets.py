@@ -1,7 +1,7 @@
 """
 ScoopGranular demonstration files as a whole (robomimic's HDF5 schema, data.schema): what a file holds, merging,
-train/valid splits, cleaning after interrupted writes. The console programs of veragmil_suite.scripts.dataset_tools
-print what these return.
+train/valid splits, copies without no-op steps, cleaning after interrupted writes. The console programs of
+veragmil_suite.scripts.dataset_tools print what these return.
 """
 
 from __future__ import annotations
@@ -212,6 +212,79 @@ def merge_datasets(inputs: list[str | Path], output: str | Path, valid_ratio: fl
         data_out.attrs["merged_from"] = json.dumps(sources)
         refresh_summary(fout, valid_ratio)
     return index
+
+
+def _storage_of(d: h5py.Dataset) -> dict:
+    """How ``d`` is compressed, for a dataset written from it (camera images stay gzipped)."""
+    return dict(compression=d.compression, compression_opts=d.compression_opts, shuffle=d.shuffle)
+
+
+def noop_steps(actions: np.ndarray, threshold: float = 0.0) -> np.ndarray:
+    """The steps whose every action component is at most ``threshold`` in magnitude (a boolean per step): a
+    teleoperator's released input, which a policy would learn as holding still."""
+    return np.abs(actions).reshape(len(actions), -1).max(axis=1, initial=0.0) <= threshold
+
+
+def drop_noops(path: str | Path, output: str | Path, threshold: float = 0.0) -> tuple[int, int, int]:
+    """Copy a dataset without its no-op steps (``noop_steps``): every per-step array of a demo keeps the other
+    steps, ``next_obs`` of a kept step becomes the observation of the next kept one (the demo's last ``next_obs``
+    stays its own), and a demo of no-ops only is left out, of the masks too. Policies trained on teleoperated data
+    with its pauses learn to stall where the operator paused; dropping the pauses is the usual cure (OpenVLA's
+    LIBERO datasets). States stay valid states, but replaying the kept actions no longer reproduces them.
+
+    Returns:
+        (demos kept, steps before, steps after)
+    """
+    output = Path(output)
+    if Path(path).resolve() == output.resolve():
+        raise DatasetError(f"{output} is also the input: write the copy to a new file")
+    before = after = 0
+    with open_dataset(path) as fin, updated_file(output, new=True) as working:
+        fout = working.file
+        data_in, data_out = fin["data"], fout.create_group("data")
+        for key, value in data_in.attrs.items():
+            data_out.attrs[key] = value
+        kept_demos = []
+        for name in demo_names(fin):
+            g = data_in[name]
+            check_demo(g, f"{path}:{name}")
+            n = int(g.attrs["num_samples"])
+            keep = np.flatnonzero(~noop_steps(g["actions"][()], threshold))
+            before, after = before + n, after + len(keep)
+            if not len(keep):
+                continue
+            out = data_out.create_group(name)
+            for key, value in g.attrs.items():
+                out.attrs[key] = value
+            out.attrs["num_samples"] = len(keep)
+            out.attrs["noop_steps_dropped"] = n - len(keep)
+            for key, d in g.items():
+                if isinstance(d, h5py.Dataset):
+                    out.create_dataset(key, data=d[()][keep], **_storage_of(d))
+            dones = out["dones"][()]
+            dones[-1] = g["dones"][n - 1]  # the episode still ends where it ended
+            out["dones"][...] = dones
+            for group in ("obs", "next_obs"):
+                if group in g:
+                    og = out.create_group(group)
+                    for key, d in g[group].items():
+                        if group == "next_obs" and "obs" in g and key in g["obs"]:
+                            values = np.concatenate([g["obs"][key][()][keep[1:]], d[n - 1 : n]])
+                        else:
+                            values = d[()][keep]
+                        og.create_dataset(key, data=values, **_storage_of(d))
+            kept_demos.append(name)
+            working.check()  # a full disk stops the copy at the demo it refused
+        if "mask" in fin:
+            masks = fout.create_group("mask")
+            for key, d in fin["mask"].items():
+                members = [m for m in d[()] if m.decode() in kept_demos]
+                masks.create_dataset(key, data=np.array(members, dtype="S"))
+        data_out.attrs["total"] = after
+        data_out.attrs["noops_dropped"] = json.dumps(
+            dict(source=str(path), threshold=threshold, steps_before=before, steps_after=after)
+        )
+    return len(kept_demos), before, after
 
 
 def split_dataset(path: str | Path, ratio: float, seed: int = 0, filter_key: str | None = None) -> tuple[int, int]:

@@ -7,6 +7,7 @@ argument parsing, printing and exit codes around veragmil_suite.data.datasets.
     veragmil-split          train/valid split with a ratio (robomimic's mask/train and mask/valid)
     veragmil-replay         replay demos to an mp4 from their states (or their actions, checking the states)
     veragmil-render-obs     re-render camera observations from the states, for other cameras or sizes
+    veragmil-drop-noops     a copy without the steps whose action is a no-op (a teleoperator's pauses)
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import argparse
 import json
 from pathlib import Path
 
-from veragmil_suite.data.datasets import clean_dataset, dataset_summary, merge_datasets, split_dataset
+from veragmil_suite.data.datasets import clean_dataset, dataset_summary, drop_noops, merge_datasets, split_dataset
 from veragmil_suite.data.replay import render_observations, replay_demos
 from veragmil_suite.utils import cli
 from veragmil_suite.utils.cli.handler import UsageError, command
@@ -270,4 +271,34 @@ def render_obs_main(args: argparse.Namespace) -> int:
     height, width = args.camera_height, args.camera_width
     n = render_observations(args.dataset, args.output, args.camera_names, height, width, args.depth, args.demos)
     print(f"wrote {n} demos with {', '.join(args.camera_names)} at {height}x{width} to {args.output}")
+    return 0
+
+
+def build_drop_noops_parser() -> Parser:
+    p = Parser(
+        "veragmil-drop-noops",
+        description="Write a copy of a demonstration file without its no-op steps: the steps whose every action "
+        "component is at most --threshold in magnitude (a teleoperator's released input). Policies trained on "
+        "data with such pauses learn to stall; next_obs is joined up across the dropped steps, masks are kept.",
+    )
+    p.add_input("dataset", "--dataset", cli.dataset, help="HDF5 file")
+    p.add_argument("--output", "-o", type=cli.output_dataset, required=True, help="new HDF5 file")
+    p.add_argument(
+        "--threshold",
+        type=cli.fraction_below_one,
+        default=0.0,
+        help="largest action magnitude of a no-op, a fraction of full scale (default 0: exactly zero)",
+    )
+    p.add_argument("--force", action="store_true", help="overwrite --output")
+    return p
+
+
+@command(build_drop_noops_parser)
+def drop_noops_main(args: argparse.Namespace) -> int:
+    """veragmil-drop-noops: copy a dataset without its no-op steps."""
+    _refuse_existing(args.output, args.force)
+    demos, before, after = drop_noops(args.dataset, args.output, args.threshold)
+    dropped = before - after
+    share = dropped / before if before else 0.0
+    print(f"wrote {demos} demos to {args.output}: dropped {dropped} no-op steps of {before} ({_pct(share)})")
     return 0
