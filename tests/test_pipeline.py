@@ -494,3 +494,31 @@ def test_a_study_records_on_its_physics(tmp_path):
     assert record_food(path, "pasta", demos=1, n_grains=12, horizon=250, physics="table1") > 0
     with h5py.File(path) as f:
         assert json.loads(f["data"].attrs["env_args"])["env_kwargs"]["physics"] == "table1"
+
+
+def test_a_study_with_drop_noops_trains_on_its_data_without_the_operators_pauses(tmp_path):
+    """--drop-noops: the spacemouse operator's pauses (zero actions) are cut from the merged recording into
+    data/<profile>-no-noops.hdf5, the models train on that file and their runs and columns say so; a resumed study
+    finds the file made."""
+    out = tmp_path / "study"
+    args = ["--profiles", "spacemouse", "--algos", "bc", "--train-foods", "pasta", "--eval-foods", "pasta"]
+    args += ["--n-grains", "12", "--demos-per-food", "1", "--epochs", "1", "--steps-per-epoch", "5", "--episodes", "1"]
+    args += ["--no-operators", "--drop-noops", "--output-dir", out]
+    first = run_program("veragmil-study", *args, check=False)
+    assert first.returncode == 0, first.stdout[-3000:] + first.stderr[-3000:]
+    merged, cut = out / "data" / "spacemouse.hdf5", out / "data" / "spacemouse-no-noops.hdf5"
+    with h5py.File(merged) as a, h5py.File(cut) as b:
+        before, after = int(a["data"].attrs["total"]), int(b["data"].attrs["total"])
+        zero = sum(int((a[f"data/{n}/actions"][()] == 0).all(axis=1).sum()) for n in a["data"])
+        assert zero > 0 and after == before - zero  # the operator paused, and every pause is gone
+        assert not any((b[f"data/{n}/actions"][()] == 0).all(axis=1).any() for n in b["data"])
+        assert b["mask/first1"][()].tolist() == a["mask/first1"][()].tolist()
+    assert f"dropped {zero} no-op steps of {before} from spacemouse.hdf5" in first.stdout
+    config = json.loads((out / "runs" / "spacemouse_bc_1demos_5steps_obs-no-load_no-noops.json").read_text())
+    assert config["train"]["data"] == str(cut)
+    results = json.loads((out / "eval" / "results.json").read_text())
+    assert {e["agent"] for e in results["episodes"]} == {"spacemouse BC no-load obs no-noops"}
+
+    again = run_program("veragmil-study", *args, check=False)
+    assert again.returncode == 0 and "skipping dropping no-op steps" in again.stdout
+    assert "skipping training spacemouse_bc_1demos_5steps_obs-no-load_no-noops" in again.stdout

@@ -282,7 +282,14 @@ def drop_noops(path: str | Path, output: str | Path, threshold: float = 0.0) -> 
                 masks.create_dataset(key, data=np.array(members, dtype="S"))
         data_out.attrs["total"] = after
         data_out.attrs["noops_dropped"] = json.dumps(
-            dict(source=str(path), threshold=threshold, steps_before=before, steps_after=after)
+            dict(
+                source=str(path),
+                threshold=threshold,
+                steps_before=before,
+                steps_after=after,
+                demos=len(demo_names(fin)),
+                demos_kept=len(kept_demos),
+            )
         )
     return len(kept_demos), before, after
 

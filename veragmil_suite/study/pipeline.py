@@ -13,7 +13,8 @@ or partial grid continues where it stopped and a larger one reuses the pieces of
 - Recording: one file per profile and food, ``data/<profile>/<food>.hdf5``, complete once it holds the demos
   asked for (a shorter one, from a killed run, is recorded again: attempts are seeded, so the demos are the same).
   The foods' files are merged into ``data/<profile>.hdf5`` with a mask ``first<N>`` per demo count: the first N
-  demos of each food, so smaller datasets are prefixes of larger ones.
+  demos of each food, so smaller datasets are prefixes of larger ones. With ``drop_noops``, the models train on
+  ``data/<profile>-no-noops.hdf5``, the merged file without its no-op steps, made again when the merged file changes.
 - Training: ``runs/<profile>_<algo>_<N>demos_<steps>steps`` (``_seed<S>`` added for a training seed other than the
   default, ``seed + 1``), complete once its last checkpoint exists and its
   config equals the one asked for (a different one is refused: pick another output directory).
@@ -36,7 +37,7 @@ from pathlib import Path
 from veragmil_suite.evaluation.evaluate import evaluate
 from veragmil_suite.evaluation.reporting import write_learning_curves, write_seed_tables
 from veragmil_suite.learning.algorithms import ALGORITHMS
-from veragmil_suite.study.record import check_recordings, demo_mask, record_scripted_dataset
+from veragmil_suite.study.record import check_recordings, demo_mask, drop_noops_once, record_scripted_dataset
 from veragmil_suite.study.settings import EVAL_SEED_OFFSET, PipelineSettings
 from veragmil_suite.study.training import finished_training, train_piece, training_config, training_resources
 from veragmil_suite.utils.distributed import Resources, cluster_resources, ray_session, run_pieces
@@ -58,7 +59,7 @@ def training_runs(settings: PipelineSettings) -> list[dict]:
                     for train_seed in settings.train_seeds:
                         config = training_config(
                             algo,
-                            out / "data" / f"{profile}.hdf5",
+                            out / "data" / settings.training_data(profile),
                             out / "runs",
                             settings.run_name(profile, algo, n, train_seed, obs),
                             settings.epochs_of(algo),
@@ -131,6 +132,8 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True, verbose: boo
                 echo=verbose,
             )
             note(f"record {profile}", seconds or None)
+            if settings.drop_noops:
+                drop_noops_once(out / "data" / f"{profile}.hdf5", out / "data" / settings.training_data(profile), say)
         checkpoints = _train_runs(runs, settings, out / "runs", address, say, note, progress, verbose)
 
         agents: dict[str, str] = {}

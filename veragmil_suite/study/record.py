@@ -1,5 +1,6 @@
 """The study's recording stage: one scripted dataset per profile and food, checked, then merged per profile with
-a ``first<N>`` mask per demo count (smaller datasets are prefixes of larger ones).
+a ``first<N>`` mask per demo count (smaller datasets are prefixes of larger ones), and, when the study asks, a copy
+of the merged file without its no-op steps.
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ from pathlib import Path
 import h5py
 
 from veragmil_suite.data.collection import record_scripted, recording_env_kwargs
-from veragmil_suite.data.datasets import merge_datasets
+from veragmil_suite.data.datasets import drop_noops, merge_datasets
 from veragmil_suite.data.schema import DatasetError, demo_names, open_dataset, seeds_used
 from veragmil_suite.data.writer import updated_file
 from veragmil_suite.learning.observation_sets import WRENCH_OBSERVATIONS, needs_wrench
@@ -283,3 +284,22 @@ def record_scripted_dataset(
             elapsed += seconds
     merge_profile_dataset(path, files, counts)
     return elapsed
+
+
+def drop_noops_once(merged: Path, path: Path, say=print) -> None:
+    """Writes ``path``: ``merged`` without its no-op steps (veragmil-drop-noops), unless ``path`` was already made
+    from ``merged`` as it is now (the same file, as many steps and demos)."""
+    with open_dataset(merged) as f:
+        source = dict(steps_before=int(f["data"].attrs["total"]), demos=len(demo_names(f)))
+    if path.exists():
+        try:
+            with open_dataset(path) as f:
+                made = json.loads(f["data"].attrs.get("noops_dropped", "{}"))
+        except DatasetError:
+            made = {}
+        same = Path(made.get("source", "")).name == merged.name
+        if same and all(made.get(key) == value for key, value in source.items()):
+            say(f"skipping dropping no-op steps: {path} holds {merged.name} without them")
+            return
+    demos, before, after = drop_noops(merged, path)
+    say(f"dropped {before - after} no-op steps of {before} from {merged.name} into {path.name} ({demos} demos)")

@@ -186,6 +186,15 @@ class PipelineSettings:
         ),
         factory=lambda: [DEFAULT_OBSERVATION_SET],
     )
+    drop_noops: bool = setting(
+        Option(
+            "train on each profile's data without its no-op steps (veragmil-drop-noops: the operator's pauses, "
+            "which policies learn as stalls), written beside it as data/<profile>-no-noops.hdf5; the models' "
+            "columns and runs say no-noops",
+            action="store_true",
+        ),
+        False,
+    )
     agents: dict[str, str] = setting(
         Option(
             f"also evaluate this agent beside the run's own (repeat for more): SPEC is {SPEC_HELP} (default: "
@@ -286,6 +295,7 @@ class PipelineSettings:
         sweeps them (or its algorithms train for different budgets), plus the training seed when there are several
         (without ``train_seed``: the recipe's label, which names all its seeds)."""
         label = f"{profile} {ALGORITHMS[algo].label} {obs_set} obs"
+        label += " no-noops" if self.drop_noops else ""
         label += f" {demos_per_food} demos" if len(self.demos_per_food) > 1 else ""
         label += f" {_steps_label(steps)} steps" if self.sweeps_steps else ""
         label += f" seed {train_seed}" if train_seed is not None and len(self.train_seeds) > 1 else ""
@@ -298,7 +308,13 @@ class PipelineSettings:
         seeds and observation sets resume."""
         name = f"{profile}_{algo}_{demos_per_food}demos_{self.total_steps_of(algo)}steps"
         name += f"_obs-{obs_set}" if obs_set != UNNAMED_RUNS_OBSERVATION_SET else ""
+        name += "_no-noops" if self.drop_noops else ""
         return name if train_seed == self.seed + 1 else f"{name}_seed{train_seed}"
+
+    def training_data(self, profile: str) -> str:
+        """The file under data/ that ``profile``'s models train on: its merged recording, or with ``drop_noops``
+        that recording without its no-op steps."""
+        return f"{profile}-no-noops.hdf5" if self.drop_noops else f"{profile}.hdf5"
 
     def own_agents(self) -> list[str]:
         """The columns this run makes itself: each profile's operator (when scored) and each checkpoint."""
