@@ -4,6 +4,7 @@ import csv
 import json
 import os
 import re
+import shutil
 import signal
 import subprocess
 import time
@@ -522,3 +523,31 @@ def test_a_study_with_drop_noops_trains_on_its_data_without_the_operators_pauses
     again = run_program("veragmil-study", *args, check=False)
     assert again.returncode == 0 and "skipping dropping no-op steps" in again.stdout
     assert "skipping training spacemouse_bc_1demos_5steps_obs-no-load_no-noops" in again.stdout
+
+
+def test_the_copy_without_noops_is_made_again_only_when_the_recording_changed(tmp_path):
+    from helpers.recording import record_file
+
+    from veragmil_suite.study.record import drop_noops_once
+
+    merged, path = tmp_path / "spacemouse.hdf5", tmp_path / "spacemouse-no-noops.hdf5"
+    record_file(merged, episodes=1, steps=6)
+    with h5py.File(merged, "r+") as f:
+        actions = f["data/demo_0/actions"][()]
+        actions[2] = 0.0
+        f["data/demo_0/actions"][...] = actions
+        f["data"].attrs["merged_inputs"] = "stamp 1"
+    said = []
+    drop_noops_once(merged, path, said.append)
+    assert said[-1].startswith("dropped 1 no-op steps of 6 from spacemouse.hdf5")
+    drop_noops_once(merged, path, said.append)
+    assert said[-1].startswith("skipping dropping no-op steps")
+    with h5py.File(merged, "r+") as f:
+        f["data"].attrs["merged_inputs"] = "stamp 2"  # merged again from changed recordings
+    drop_noops_once(merged, path, said.append)
+    assert said[-1].startswith("dropped 1 no-op steps")
+    shutil.copy(merged, path)  # a file there that is no copy without no-ops
+    drop_noops_once(merged, path, said.append)
+    assert said[-1].startswith("dropped 1 no-op steps")
+    with h5py.File(path) as f:
+        assert f["data/demo_0"].attrs["num_samples"] == 5

@@ -286,19 +286,27 @@ def record_scripted_dataset(
     return elapsed
 
 
+def _made_from(path: Path) -> tuple:
+    """What a dataset was merged from (merge_profile_dataset's stamp, which a copy without no-ops keeps), with its
+    steps and demos before any were dropped."""
+    with open_dataset(path) as f:
+        attrs = f["data"].attrs
+        dropped = json.loads(attrs.get("noops_dropped", "null")) or {}
+        steps = dropped.get("steps_before", int(attrs.get("total", -1)))
+        return attrs.get("merged_inputs"), steps, dropped.get("demos", len(demo_names(f)))
+
+
 def drop_noops_once(merged: Path, path: Path, say=print) -> None:
     """Writes ``path``: ``merged`` without its no-op steps (veragmil-drop-noops), unless ``path`` was already made
-    from ``merged`` as it is now (the same file, as many steps and demos)."""
-    with open_dataset(merged) as f:
-        source = dict(steps_before=int(f["data"].attrs["total"]), demos=len(demo_names(f)))
+    from ``merged`` as it is now (the same merged inputs, steps and demos)."""
     if path.exists():
         try:
             with open_dataset(path) as f:
-                made = json.loads(f["data"].attrs.get("noops_dropped", "{}"))
+                copied = "noops_dropped" in f["data"].attrs
+            made = _made_from(path) if copied else None  # not a copy without no-ops: written again
         except DatasetError:
-            made = {}
-        same = Path(made.get("source", "")).name == merged.name
-        if same and all(made.get(key) == value for key, value in source.items()):
+            made = None  # unreadable: written again
+        if made == _made_from(merged):
             say(f"skipping dropping no-op steps: {path} holds {merged.name} without them")
             return
     demos, before, after = drop_noops(merged, path)
