@@ -499,8 +499,8 @@ def test_a_study_records_on_its_physics(tmp_path):
 
 def test_a_study_with_drop_noops_trains_on_its_data_without_the_operators_pauses(tmp_path):
     """--drop-noops: the spacemouse operator's pauses (zero actions) are cut from the merged recording into
-    data/<profile>-no-noops.hdf5, the models train on that file and their runs and columns say so; a resumed study
-    finds the file made."""
+    data/<profile>-no-noops.hdf5, the models train on that file and their runs and columns say so (when the file
+    is made again: the next test)."""
     out = tmp_path / "study"
     args = ["--profiles", "spacemouse", "--algos", "bc", "--train-foods", "pasta", "--eval-foods", "pasta"]
     args += ["--n-grains", "12", "--demos-per-food", "1", "--epochs", "1", "--steps-per-epoch", "5", "--episodes", "1"]
@@ -519,10 +519,6 @@ def test_a_study_with_drop_noops_trains_on_its_data_without_the_operators_pauses
     assert config["train"]["data"] == str(cut)
     results = json.loads((out / "eval" / "results.json").read_text())
     assert {e["agent"] for e in results["episodes"]} == {"spacemouse BC no-load obs no-noops"}
-
-    again = run_program("veragmil-study", *args, check=False)
-    assert again.returncode == 0 and "skipping dropping no-op steps" in again.stdout
-    assert "skipping training spacemouse_bc_1demos_5steps_obs-no-load_no-noops" in again.stdout
 
 
 def test_the_copy_without_noops_is_made_again_only_when_the_recording_changed(tmp_path):
