@@ -242,10 +242,9 @@ def drop_noops(path: str | Path, output: str | Path, threshold: float = 0.0) -> 
     with open_dataset(path) as fin, updated_file(output, new=True) as working:
         fout = working.file
         data_in, data_out = fin["data"], fout.create_group("data")
-        for key, value in data_in.attrs.items():
-            data_out.attrs[key] = value
-        kept_demos = []
-        for name in demo_names(fin):
+        data_out.attrs.update(data_in.attrs)
+        names, kept_demos = demo_names(fin), set()
+        for name in names:
             g = data_in[name]
             check_demo(g, f"{path}:{name}")
             n = int(g.attrs["num_samples"])
@@ -254,26 +253,23 @@ def drop_noops(path: str | Path, output: str | Path, threshold: float = 0.0) -> 
             if not len(keep):
                 continue
             out = data_out.create_group(name)
-            for key, value in g.attrs.items():
-                out.attrs[key] = value
+            out.attrs.update(g.attrs)
             out.attrs["num_samples"] = len(keep)
             out.attrs["noop_steps_dropped"] = n - len(keep)
             for key, d in g.items():
                 if isinstance(d, h5py.Dataset):
-                    out.create_dataset(key, data=d[()][keep], **_storage_of(d))
-            dones = out["dones"][()]
-            dones[-1] = g["dones"][n - 1]  # the episode still ends where it ended
-            out["dones"][...] = dones
-            for group in ("obs", "next_obs"):
-                if group in g:
-                    og = out.create_group(group)
-                    for key, d in g[group].items():
-                        if group == "next_obs" and "obs" in g and key in g["obs"]:
-                            values = np.concatenate([g["obs"][key][()][keep[1:]], d[n - 1 : n]])
-                        else:
-                            values = d[()][keep]
-                        og.create_dataset(key, data=values, **_storage_of(d))
-            kept_demos.append(name)
+                    values = d[()][keep]
+                    if key == "dones":
+                        values[-1] = d[n - 1]  # the episode still ends where it ended
+                    out.create_dataset(key, data=values, **_storage_of(d))
+            obs = {key: d[()] for key, d in g["obs"].items()} if "obs" in g else {}
+            for key, values in obs.items():
+                out.create_dataset(f"obs/{key}", data=values[keep], **_storage_of(g["obs"][key]))
+            for key, d in g.get("next_obs", {}).items():
+                # a kept step's next observation is the next kept step's observation; the last keeps its own
+                joined = np.concatenate([obs[key][keep[1:]], d[n - 1 : n]]) if key in obs else d[()][keep]
+                out.create_dataset(f"next_obs/{key}", data=joined, **_storage_of(d))
+            kept_demos.add(name)
             working.check()  # a full disk stops the copy at the demo it refused
         if "mask" in fin:
             masks = fout.create_group("mask")
@@ -287,7 +283,7 @@ def drop_noops(path: str | Path, output: str | Path, threshold: float = 0.0) -> 
                 threshold=threshold,
                 steps_before=before,
                 steps_after=after,
-                demos=len(demo_names(fin)),
+                demos=len(names),
                 demos_kept=len(kept_demos),
             )
         )

@@ -286,27 +286,26 @@ def record_scripted_dataset(
     return elapsed
 
 
-def _made_from(path: Path) -> tuple:
-    """What a dataset was merged from (merge_profile_dataset's stamp, which a copy without no-ops keeps), with its
-    steps and demos before any were dropped."""
+def _recording_of(path: Path) -> tuple[tuple, bool]:
+    """The recording a dataset holds: merge_profile_dataset's stamp of its inputs (which a copy without no-ops
+    keeps), its steps and demos before any were dropped; and whether it is such a copy."""
     with open_dataset(path) as f:
         attrs = f["data"].attrs
-        dropped = json.loads(attrs.get("noops_dropped", "null")) or {}
-        steps = dropped.get("steps_before", int(attrs.get("total", -1)))
-        return attrs.get("merged_inputs"), steps, dropped.get("demos", len(demo_names(f)))
+        dropped = json.loads(attrs["noops_dropped"]) if "noops_dropped" in attrs else None
+        if dropped is None:
+            return (attrs.get("merged_inputs"), int(attrs.get("total", -1)), len(demo_names(f))), False
+        return (attrs.get("merged_inputs"), dropped["steps_before"], dropped["demos"]), True
 
 
 def drop_noops_once(merged: Path, path: Path, say=print) -> None:
-    """Writes ``path``: ``merged`` without its no-op steps (veragmil-drop-noops), unless ``path`` was already made
-    from ``merged`` as it is now (the same merged inputs, steps and demos)."""
+    """Writes ``path``: ``merged`` without its no-op steps (veragmil-drop-noops), unless ``path`` is such a copy of
+    ``merged`` as it is now (the same merged inputs, steps and demos)."""
     if path.exists():
         try:
-            with open_dataset(path) as f:
-                copied = "noops_dropped" in f["data"].attrs
-            made = _made_from(path) if copied else None  # not a copy without no-ops: written again
+            made, copied = _recording_of(path)
         except DatasetError:
-            made = None  # unreadable: written again
-        if made == _made_from(merged):
+            made, copied = None, False  # unreadable: written again
+        if copied and made == _recording_of(merged)[0]:
             say(f"skipping dropping no-op steps: {path} holds {merged.name} without them")
             return
     demos, before, after = drop_noops(merged, path)
