@@ -547,3 +547,37 @@ def test_the_copy_without_noops_is_made_again_only_when_the_recording_changed(tm
     assert said[-1].startswith("dropped 1 no-op steps")
     with h5py.File(path) as f:
         assert f["data/demo_0"].attrs["num_samples"] == 5
+
+
+def test_a_study_folder_copied_with_its_files_times_is_not_merged_again(tmp_path):
+    """The merge's stamp names its inputs relative to the merged file: a copied study's data folder is used as it
+    is (the 300 MB spacemouse file was merged and cut again, and its hard links to the first study broken)."""
+    from helpers.recording import synthetic_episode, synthetic_writer
+
+    from veragmil_suite.study.record import drop_noops_once, merge_profile_dataset
+
+    first = tmp_path / "first" / "data"
+    foods = [first / "spacemouse" / f"{food}.hdf5" for food in ("rice", "pasta")]
+    for seed, path in enumerate(foods):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with synthetic_writer(path) as writer:
+            for k in range(3):
+                writer.write(synthetic_episode(seed=10 * seed + k))
+    merge_profile_dataset(first / "spacemouse.hdf5", foods, [2])
+    drop_noops_once(first / "spacemouse.hdf5", first / "spacemouse-no-noops.hdf5", lambda line: None)
+    second = tmp_path / "second" / "data"
+    shutil.copytree(first, second)  # copy2: the files keep their times
+    held = {p: p.stat().st_mtime_ns for p in second.glob("*.hdf5")}
+    copied = [second / "spacemouse" / p.name for p in foods]
+    merge_profile_dataset(second / "spacemouse.hdf5", copied, [2])
+    said = []
+    drop_noops_once(second / "spacemouse.hdf5", second / "spacemouse-no-noops.hdf5", said.append)
+    assert said[-1].startswith("skipping dropping no-op steps")
+    assert {p: p.stat().st_mtime_ns for p in second.glob("*.hdf5")} == held
+    merge_profile_dataset(second / "spacemouse.hdf5", copied, [1, 2])  # a new demo count: its mask is added
+    with h5py.File(second / "spacemouse.hdf5") as f:
+        assert 0 < len(f["mask/first1"][()]) < len(f["mask/first2"][()])
+    copied[0].touch()  # a food recorded anew: merged again
+    merge_profile_dataset(second / "spacemouse.hdf5", copied, [2])
+    drop_noops_once(second / "spacemouse.hdf5", second / "spacemouse-no-noops.hdf5", said.append)
+    assert said[-1].startswith("dropped")

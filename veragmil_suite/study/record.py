@@ -193,28 +193,35 @@ def check_merged(path: Path, food_files: list[Path]) -> None:
 def merge_profile_dataset(path: Path, food_files: list[Path], demo_counts: list[int]) -> None:
     """
     Merges the foods' files into ``path`` (again when the inputs changed) and writes a mask per demo count: the
-    first N demos of each food (its first N seeds).
+    first N demos of each food (its first N seeds). The stamp of the inputs names them relative to ``path``'s
+    folder, so a study folder moved or copied with its files' times is not merged again; a file already merged
+    from these inputs with these masks is left as it is.
     """
-    sources = [str(p) for p in food_files]
-    stamp = json.dumps([[s, os.path.getmtime(s)] for s in sources])
-    current = None
+    path = Path(path)
+    stamp = json.dumps([[os.path.relpath(p, path.parent), os.path.getmtime(p)] for p in food_files])
+    current, masks = None, {}
     if path.exists():
         with h5py.File(path, "r") as f:
             current = f["data"].attrs.get("merged_inputs")
+            if "mask" in f:
+                masks = {key: [bytes(name).decode() for name in f["mask"][key][()]] for key in f["mask"]}
     if current != stamp:
-        merge_datasets(sources, path)
-    with updated_file(path) as working:
-        f = working.file
-        f["data"].attrs["merged_inputs"] = stamp
+        merge_datasets([str(p) for p in food_files], path)
+        masks = {}
+    with h5py.File(path, "r") as f:
         by_food: dict[str, list[str]] = {}
         for name in sorted(f["data"].keys(), key=lambda n: int(n.split("_")[-1])):
             by_food.setdefault(str(f["data"][name].attrs["food"]), []).append(name)
-        for n in demo_counts:
-            names = [name for demos in by_food.values() for name in demos[:n]]
-            key = f"mask/{demo_mask(n)}"
-            if key in f:
-                del f[key]
-            f.create_dataset(key, data=[name.encode() for name in names])
+    wanted = {demo_mask(n): [name for demos in by_food.values() for name in demos[:n]] for n in demo_counts}
+    if current == stamp and all(masks.get(key) == names for key, names in wanted.items()):
+        return
+    with updated_file(path) as working:
+        f = working.file
+        f["data"].attrs["merged_inputs"] = stamp
+        for key, names in wanted.items():
+            if f"mask/{key}" in f:
+                del f[f"mask/{key}"]
+            f.create_dataset(f"mask/{key}", data=[name.encode() for name in names])
 
 
 def food_files(path: Path, foods: list[str]) -> list[Path]:
