@@ -199,16 +199,14 @@ def merge_profile_dataset(path: Path, food_files: list[Path], demo_counts: list[
     """
     path = Path(path)
     stamp = json.dumps([[os.path.relpath(p, path.parent), os.path.getmtime(p)] for p in food_files])
-    current, masks = None, {}
+    current = None
     if path.exists():
         with h5py.File(path, "r") as f:
             current = f["data"].attrs.get("merged_inputs")
-            if "mask" in f:
-                masks = {key: [bytes(name).decode() for name in f["mask"][key][()]] for key in f["mask"]}
     if current != stamp:
         merge_datasets([str(p) for p in food_files], path)
-        masks = {}
     with h5py.File(path, "r") as f:
+        masks = {key: [bytes(name).decode() for name in f["mask"][key][()]] for key in f.get("mask", {})}
         by_food: dict[str, list[str]] = {}
         for name in sorted(f["data"].keys(), key=lambda n: int(n.split("_")[-1])):
             by_food.setdefault(str(f["data"][name].attrs["food"]), []).append(name)
