@@ -205,6 +205,45 @@ def test_drop_noops_keeps_every_other_step_joins_next_obs_and_leaves_out_an_all_
     assert out.read_bytes() == before
 
 
+def test_drop_noops_keeps_the_noops_at_which_success_held_unless_told(files, tmp_path, capsys):
+    """Holding still at the goal is what success asks there, not a pause: a no-op whose reward is the env's success
+    reward (its reward_scale) stays; --drop-held drops it too. A shaped reward below it is no success."""
+    pasta, _ = files
+    held = tmp_path / "held.hdf5"
+    shutil.copy(pasta, held)
+    with h5py.File(held, "r+") as f:
+        actions, rewards = f["data/demo_0/actions"][()], f["data/demo_0/rewards"][()]
+        actions[[1, 6, 7, 8]] = 0.0  # a pause on the way, then the hold at the goal
+        rewards[:] = 0.5  # shaped, below success
+        rewards[[6, 7, 8]] = 2.0  # success held, under reward_scale 2
+        f["data/demo_0/actions"][...], f["data/demo_0/rewards"][...] = actions, rewards
+        env_args = json.loads(f["data"].attrs["env_args"])
+        env_args["env_kwargs"]["reward_scale"] = 2.0
+        f["data"].attrs["env_args"] = json.dumps(env_args)
+    kept = tmp_path / "kept.hdf5"
+    assert drop_noops_main([str(held), "-o", str(kept)]) == 0
+    assert "dropped 1 no-op steps of 20 (5%); kept 3 at which the task's success held" in capsys.readouterr().out
+    with h5py.File(held) as a, open_dataset(kept) as b:
+        keep = [i for i in range(STEPS) if i != 1]
+        np.testing.assert_array_equal(b["data/demo_0/actions"][()], a["data/demo_0/actions"][()][keep])
+        assert b["data/demo_0"].attrs["held_noop_steps_kept"] == 3
+        record = json.loads(b["data"].attrs["noops_dropped"])
+        assert record["keep_held"] is True and record["held_noop_steps_kept"] == 3
+    dropped = tmp_path / "dropped.hdf5"
+    assert drop_noops_main([str(held), "-o", str(dropped), "--drop-held"]) == 0
+    assert "dropped 4 no-op steps of 20 (20%)\n" in capsys.readouterr().out
+    with open_dataset(dropped) as f:
+        assert f["data/demo_0"].attrs["num_samples"] == STEPS - 4
+        assert json.loads(f["data"].attrs["noops_dropped"])["keep_held"] is False
+    # under robosuite's default reward_scale (1) the same rewards of 2 are success too; of 0.5, not
+    with h5py.File(held, "r+") as f:
+        env_args["env_kwargs"].pop("reward_scale")
+        f["data"].attrs["env_args"] = json.dumps(env_args)
+        f["data/demo_0/rewards"][[6, 7]] = 0.5
+    assert drop_noops_main([str(held), "-o", str(kept), "--force"]) == 0
+    assert "dropped 3 no-op steps of 20 (15%); kept 1 at which" in capsys.readouterr().out
+
+
 def _robomimic(command, *args, cwd):
     return run_program(command, *args, cwd=cwd).stdout
 

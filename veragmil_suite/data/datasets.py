@@ -225,15 +225,37 @@ def noop_steps(actions: np.ndarray, threshold: float = 0.0) -> np.ndarray:
     return np.abs(actions).reshape(len(actions), -1).max(axis=1, initial=0.0) <= threshold
 
 
-def drop_noops(path: str | Path, output: str | Path, threshold: float = 0.0) -> tuple[int, int, int]:
+def success_reward(data: h5py.Group) -> float | None:
+    """The reward of a step at which the recorded task succeeds: robosuite's ``reward_scale`` of its env (1 when
+    it names none, as robosuite's tasks default; None when it is not positive, so no step can be told)."""
+    kwargs = json.loads(data.attrs.get("env_args", "{}")).get("env_kwargs", {})
+    scale = kwargs.get("reward_scale", 1.0)
+    scale = 1.0 if scale is None else float(scale)
+    return scale if scale > 0 else None
+
+
+def held_steps(rewards: np.ndarray, reward: float | None) -> np.ndarray:
+    """The steps at which the task's success held (a boolean per step): a robosuite task's reward is ``reward``
+    (its reward_scale) there and below it elsewhere, shaped or not."""
+    rewards = np.asarray(rewards, dtype=float).reshape(-1)
+    return np.zeros(len(rewards), bool) if reward is None else rewards >= reward * (1 - 1e-9)
+
+
+def drop_noops(
+    path: str | Path, output: str | Path, threshold: float = 0.0, keep_held: bool = True
+) -> tuple[int, int, int, int]:
     """Copy a dataset without its no-op steps (``noop_steps``): every per-step array of a demo keeps the other
     steps, ``next_obs`` of a kept step becomes the observation of the next kept one (the demo's last ``next_obs``
     stays its own), and a demo of no-ops only is left out, of the masks too. Policies trained on teleoperated data
     with its pauses learn to stall where the operator paused; dropping the pauses is the usual cure (OpenVLA's
     LIBERO datasets). States stay valid states, but replaying the kept actions no longer reproduces them.
 
+    With ``keep_held``, a no-op at which the task's success held (``held_steps``) is kept: holding still at the
+    goal is what success asks there, not a pause. Without them the spacemouse demos' holds at the post-scoop pose
+    keep only their corrections, and a policy trained on them kept moving there (41% of those steps are no-ops).
+
     Returns:
-        (demos kept, steps before, steps after)
+        (demos kept, steps before, steps after, held no-op steps kept)
     """
     output = Path(output)
     if Path(path).resolve() == output.resolve():
@@ -243,19 +265,23 @@ def drop_noops(path: str | Path, output: str | Path, threshold: float = 0.0) -> 
         fout = working.file
         data_in, data_out = fin["data"], fout.create_group("data")
         data_out.attrs.update(data_in.attrs)
-        names, kept_demos = demo_names(fin), set()
+        names, kept_demos, held_kept = demo_names(fin), set(), 0
+        reward = success_reward(data_in) if keep_held else None
         for name in names:
             g = data_in[name]
             check_demo(g, f"{path}:{name}")
             n = int(g.attrs["num_samples"])
-            keep = np.flatnonzero(~noop_steps(g["actions"][()], threshold))
-            before, after = before + n, after + len(keep)
+            noop = noop_steps(g["actions"][()], threshold)
+            held = noop & held_steps(g["rewards"][()], reward) if "rewards" in g else np.zeros(n, bool)
+            keep = np.flatnonzero(~noop | held)
+            before, after, held_kept = before + n, after + len(keep), held_kept + int(held.sum())
             if not len(keep):
                 continue
             out = data_out.create_group(name)
             out.attrs.update(g.attrs)
             out.attrs["num_samples"] = len(keep)
             out.attrs["noop_steps_dropped"] = n - len(keep)
+            out.attrs["held_noop_steps_kept"] = int(held.sum())
             for key, d in g.items():
                 if isinstance(d, h5py.Dataset):
                     values = d[()][keep]
@@ -281,13 +307,15 @@ def drop_noops(path: str | Path, output: str | Path, threshold: float = 0.0) -> 
             dict(
                 source=str(path),
                 threshold=threshold,
+                keep_held=keep_held,
+                held_noop_steps_kept=held_kept,
                 steps_before=before,
                 steps_after=after,
                 demos=len(names),
                 demos_kept=len(kept_demos),
             )
         )
-    return len(kept_demos), before, after
+    return len(kept_demos), before, after, held_kept
 
 
 def split_dataset(path: str | Path, ratio: float, seed: int = 0, filter_key: str | None = None) -> tuple[int, int]:

@@ -291,27 +291,30 @@ def record_scripted_dataset(
     return elapsed
 
 
-def _recording_of(path: Path) -> tuple[tuple, bool]:
+def _recording_of(path: Path) -> tuple[tuple, dict | None]:
     """The recording a dataset holds: merge_profile_dataset's stamp of its inputs (which a copy without no-ops
-    keeps), its steps and demos before any were dropped; and whether it is such a copy."""
+    keeps), its steps and demos before any were dropped; and for such a copy, what it dropped (drop_noops)."""
     with open_dataset(path) as f:
         attrs = f["data"].attrs
         dropped = json.loads(attrs["noops_dropped"]) if "noops_dropped" in attrs else None
         if dropped is None:
-            return (attrs.get("merged_inputs"), int(attrs.get("total", -1)), len(demo_names(f))), False
-        return (attrs.get("merged_inputs"), dropped["steps_before"], dropped["demos"]), True
+            return (attrs.get("merged_inputs"), int(attrs.get("total", -1)), len(demo_names(f))), None
+        return (attrs.get("merged_inputs"), dropped["steps_before"], dropped["demos"]), dropped
 
 
 def drop_noops_once(merged: Path, path: Path, say=print) -> None:
-    """Writes ``path``: ``merged`` without its no-op steps (veragmil-drop-noops), unless ``path`` is such a copy of
-    ``merged`` as it is now (the same merged inputs, steps and demos)."""
+    """Writes ``path``: ``merged`` without its no-op steps (veragmil-drop-noops, the no-ops at which success held
+    kept), unless ``path`` is such a copy of ``merged`` as it is now (the same merged inputs, steps and demos)."""
     if path.exists():
         try:
-            made, copied = _recording_of(path)
+            made, dropped = _recording_of(path)
         except DatasetError:
-            made, copied = None, False  # unreadable: written again
-        if copied and made == _recording_of(merged)[0]:
+            made, dropped = None, None  # unreadable: written again
+        if dropped is not None and dropped.get("keep_held", False) and made == _recording_of(merged)[0]:
             say(f"skipping dropping no-op steps: {path} holds {merged.name} without them")
             return
-    demos, before, after = drop_noops(merged, path)
-    say(f"dropped {before - after} no-op steps of {before} from {merged.name} into {path.name} ({demos} demos)")
+    demos, before, after, held = drop_noops(merged, path)
+    say(
+        f"dropped {before - after} no-op steps of {before} from {merged.name} into {path.name} ({demos} demos; "
+        f"{held} no-ops at which success held kept)"
+    )
