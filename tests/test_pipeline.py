@@ -408,6 +408,49 @@ def test_a_killed_training_of_the_same_config_is_resumed_and_another_retrained(t
     assert json.loads((work / "run.json").read_text())["experiment"]["save"]["epochs"] == [1]
 
 
+def test_a_run_whose_data_changed_since_it_trained_is_trained_again_from_the_start(tmp_path, monkeypatch):
+    """A finished or killed run trained on a file since made again from other demos (or cut by another rule) is no
+    model of that data: it is trained again, not skipped or resumed; the same data made again is skipped."""
+    from helpers.recording import synthetic_episode, synthetic_writer
+
+    from veragmil_suite.study import training
+
+    commands = []
+
+    def run_logged(command, *args, **kwargs):  # a training that saves its checkpoints
+        commands.append(command)
+        models = tmp_path / "runs" / "run" / f"t{len(commands)}" / "models"
+        models.mkdir(parents=True)
+        for epoch in (1, 2):
+            (models / f"model_epoch_{epoch}.pth").write_bytes(b"")
+        return 1.0
+
+    def record(seeds):
+        (tmp_path / "data.hdf5").unlink(missing_ok=True)
+        with synthetic_writer(tmp_path / "data.hdf5") as writer:
+            for seed in seeds:
+                writer.write(synthetic_episode(seed=seed))
+
+    monkeypatch.setattr(training, "run_logged", run_logged)
+    work = tmp_path / "runs"
+    work.mkdir()
+    record([1, 2])
+    config = training.training_config("bc", tmp_path / "data.hdf5", work, "run", 2, 10)
+    training.train_checkpoint(config, work)
+    assert len(commands) == 1 and training.finished_training(config, work) is not None
+    record([1, 2])  # the same demos recorded again
+    assert training.finished_training(config, work) is not None and not training.trained_on_other_data(config, work)
+    record([1, 3])  # other demos
+    assert training.trained_on_other_data(config, work) and training.finished_training(config, work) is None
+    training.train_checkpoint(config, work)
+    assert len(commands) == 2 and "--resume" not in commands[-1]
+    assert [p.name for p in (work / "run").iterdir()] == ["t2"]  # the run on the old data is gone
+    assert training.finished_training(config, work) is not None
+    (work / "run.data.json").unlink()  # a run from before the digest was kept: taken as it is
+    record([4])
+    assert training.finished_training(config, work) is not None
+
+
 def test_a_study_of_other_foods_leaves_another_studys_merged_dataset_alone(tmp_path):
     """Its training runs would otherwise be taken for runs on the foods asked (and the merged file was rewritten
     before the study refused)."""

@@ -40,7 +40,13 @@ from veragmil_suite.evaluation.reporting import write_learning_curves, write_see
 from veragmil_suite.learning.algorithms import ALGORITHMS
 from veragmil_suite.study.record import check_recordings, demo_mask, drop_noops_once, record_scripted_dataset
 from veragmil_suite.study.settings import EVAL_SEED_OFFSET, PipelineSettings
-from veragmil_suite.study.training import finished_training, train_piece, training_config, training_resources
+from veragmil_suite.study.training import (
+    finished_training,
+    train_piece,
+    trained_on_other_data,
+    training_config,
+    training_resources,
+)
 from veragmil_suite.utils.distributed import Resources, cluster_resources, ray_session, run_pieces
 
 # what eval/ holds beside the evaluation's own tables: learning curves, and the tables over training seeds
@@ -228,6 +234,8 @@ def _train_runs(
             say(f"skipping training {name}: its checkpoints are there ({found[last].parent})")
             checkpoints[name] = found
         else:
+            if trained_on_other_data(config, work_dir):
+                say(f"training {name} again: {config['train']['data']} changed since it was trained")
             todo.append(run)
 
     def announced(todo: list[dict]):

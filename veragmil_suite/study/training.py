@@ -4,11 +4,15 @@ skipped when complete.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import shutil
 from pathlib import Path
 
+import numpy as np
+
+from veragmil_suite.data.schema import demo_names, open_dataset
 from veragmil_suite.learning.algorithms import ALGORITHMS
 from veragmil_suite.learning.observation_sets import with_observation_set
 from veragmil_suite.learning.training_resume import comparable_config, training_seconds
@@ -69,10 +73,37 @@ def _what_is_trained(config: dict) -> dict:
     return out
 
 
+def training_data_digest(config: dict) -> str:
+    """What a run trains on, as a digest: the demos of its filter key in order, each one's steps and actions. A
+    recording made again from the same seeds gives the same digest; a cut by another rule or other demos do not."""
+    digest = hashlib.sha256()
+    with open_dataset(config["train"]["data"]) as f:
+        key = config["train"].get("hdf5_filter_key")
+        names = [n.decode() for n in f["mask"][key][()]] if key else demo_names(f)
+        for name in names:
+            actions = np.ascontiguousarray(f["data"][name]["actions"][()])
+            digest.update(f"{name}:{len(actions)}:".encode())
+            digest.update(actions.tobytes())
+    return digest.hexdigest()
+
+
+def _data_file(config: dict, work_dir: Path) -> Path:
+    return Path(work_dir) / f"{config['experiment']['name']}.data.json"
+
+
+def trained_on_other_data(config: dict, work_dir: Path) -> bool:
+    """Whether the run of this config in ``work_dir`` trained on data that has changed since (its data file made
+    again from other recordings, or cut by another rule). A run from before the digest was kept counts as not."""
+    held = _data_file(config, work_dir)
+    if not held.exists() or not Path(config["train"]["data"]).exists():
+        return False
+    return json.loads(held.read_text()).get("digest") != training_data_digest(config)
+
+
 def finished_training(config: dict, work_dir: Path) -> dict[int, Path] | None:
     """
-    The checkpoints by epoch of a finished run of this config that holds every checkpoint asked for; None when it
-    is to be trained.
+    The checkpoints by epoch of a finished run of this config that holds every checkpoint asked for, trained on
+    the data as it is now; None when it is to be trained.
 
     Raises:
         StageError: [the run's folder holds another config]
@@ -86,7 +117,7 @@ def finished_training(config: dict, work_dir: Path) -> dict[int, Path] | None:
         raise StageError(f"{config_file} holds another config for {name}; use another output directory")
     found = _checkpoints(config)
     wanted = {int(config["train"]["num_epochs"]), *config["experiment"]["save"].get("epochs", [])}
-    return found if wanted <= set(found) else None
+    return found if wanted <= set(found) and not trained_on_other_data(config, work_dir) else None
 
 
 def train_checkpoint(
@@ -101,8 +132,9 @@ def train_checkpoint(
     Trains with veragmil-train (with ``torch_threads`` torch threads when given, else $VERAGMIL_TORCH_THREADS or
     robomimic's 2; with ``progress``, a bar of its epochs, and with ``echo`` robomimic's output) unless a finished
     run of the same config holding every checkpoint asked for is there; a killed run of the same config goes on
-    from its resume state. Returns the checkpoints by epoch and the wall time (None when skipped; for a resumed
-    run, its training time over all pieces).
+    from its resume state. A run whose data changed since it trained (``trained_on_other_data``) is trained again
+    from the start. Returns the checkpoints by epoch and the wall time (None when skipped; for a resumed run, its
+    training time over all pieces).
 
     Raises:
         StageError: [training failed or wrote no last checkpoint, or the run's folder holds another config]
@@ -119,15 +151,18 @@ def train_checkpoint(
     resume = False
     if config_file.exists():
         held = json.loads(config_file.read_text())
-        if comparable_config(held) == comparable_config(config):
+        if comparable_config(held) == comparable_config(config) and not trained_on_other_data(config, work_dir):
             resume = True  # killed: veragmil-train goes on from the run's resume state, when it saved one
         else:
-            # saved at other epochs: train again, saving both
+            # saved at other epochs (train again, saving both), or trained on other data
             saved = set(held["experiment"]["save"].get("epochs", [])) | set(config["experiment"]["save"]["epochs"])
             config = json.loads(json.dumps(config))
             config["experiment"]["save"]["epochs"] = sorted(saved - {epochs})
             shutil.rmtree(Path(config["train"]["output_dir"]) / name, ignore_errors=True)
     config_file.write_text(json.dumps(config, indent=4))
+    if Path(config["train"]["data"]).exists():  # robomimic names a missing one
+        data = dict(data=config["train"]["data"], filter_key=config["train"]["hdf5_filter_key"])
+        _data_file(config, work_dir).write_text(json.dumps(dict(data, digest=training_data_digest(config)), indent=2))
     environ = {}
     if torch_threads is not None:
         environ = {"VERAGMIL_TORCH_THREADS": str(torch_threads), "OMP_NUM_THREADS": str(torch_threads)}
