@@ -251,8 +251,8 @@ def drop_noops(
     LIBERO datasets). States stay valid states, but replaying the kept actions no longer reproduces them.
 
     With ``keep_held``, a no-op at which the task's success held (``held_steps``) is kept: holding still at the
-    goal is what success asks there, not a pause. Without them the spacemouse demos' holds at the post-scoop pose
-    keep only their corrections, and a policy trained on them kept moving there (41% of those steps are no-ops).
+    goal is what success asks there, not a pause. Without them a demo's hold at the goal keeps only the operator's
+    corrections, and a policy trained on it keeps moving there.
 
     Returns:
         (demos kept, steps before, steps after, held no-op steps kept)
