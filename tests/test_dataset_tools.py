@@ -205,9 +205,9 @@ def test_drop_noops_keeps_every_other_step_joins_next_obs_and_leaves_out_an_all_
     assert out.read_bytes() == before
 
 
-def test_drop_noops_keeps_the_noops_at_which_success_held_unless_told(files, tmp_path, capsys):
-    """Holding still at the goal is what success asks there, not a pause: a no-op whose reward is the env's success
-    reward (its reward_scale) stays; --drop-held drops it too. A shaped reward below it is no success."""
+def test_drop_noops_keep_held_keeps_the_noops_at_which_success_held(files, tmp_path, capsys):
+    """--keep-held: a no-op whose reward is the env's success reward (its reward_scale), the hold at the goal,
+    stays; by default it goes with the other pauses. A shaped reward below it is no success."""
     pasta, _ = files
     held = tmp_path / "held.hdf5"
     shutil.copy(pasta, held)
@@ -221,7 +221,7 @@ def test_drop_noops_keeps_the_noops_at_which_success_held_unless_told(files, tmp
         env_args["env_kwargs"]["reward_scale"] = 2.0
         f["data"].attrs["env_args"] = json.dumps(env_args)
     kept = tmp_path / "kept.hdf5"
-    assert drop_noops_main([str(held), "-o", str(kept)]) == 0
+    assert drop_noops_main([str(held), "-o", str(kept), "--keep-held"]) == 0
     assert "dropped 1 no-op steps of 20 (5%); kept 3 at which the task's success held" in capsys.readouterr().out
     with h5py.File(held) as a, open_dataset(kept) as b:
         keep = [i for i in range(STEPS) if i != 1]
@@ -230,7 +230,7 @@ def test_drop_noops_keeps_the_noops_at_which_success_held_unless_told(files, tmp
         record = json.loads(b["data"].attrs["noops_dropped"])
         assert record["keep_held"] is True and record["held_noop_steps_kept"] == 3
     dropped = tmp_path / "dropped.hdf5"
-    assert drop_noops_main([str(held), "-o", str(dropped), "--drop-held"]) == 0
+    assert drop_noops_main([str(held), "-o", str(dropped)]) == 0
     assert "dropped 4 no-op steps of 20 (20%)\n" in capsys.readouterr().out
     with open_dataset(dropped) as f:
         assert f["data/demo_0"].attrs["num_samples"] == STEPS - 4
@@ -240,7 +240,7 @@ def test_drop_noops_keeps_the_noops_at_which_success_held_unless_told(files, tmp
         env_args["env_kwargs"].pop("reward_scale")
         f["data"].attrs["env_args"] = json.dumps(env_args)
         f["data/demo_0/rewards"][[6, 7]] = 0.5
-    assert drop_noops_main([str(held), "-o", str(kept), "--force"]) == 0
+    assert drop_noops_main([str(held), "-o", str(kept), "--force", "--keep-held"]) == 0
     assert "dropped 3 no-op steps of 20 (15%); kept 1 at which" in capsys.readouterr().out
 
 

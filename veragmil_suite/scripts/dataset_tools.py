@@ -279,9 +279,7 @@ def build_drop_noops_parser() -> Parser:
         "veragmil-drop-noops",
         description="Write a copy of a demonstration file without its no-op steps: the steps whose every action "
         "component is at most --threshold in magnitude (a teleoperator's released input). Policies trained on "
-        "data with such pauses learn to stall; next_obs is joined up across the dropped steps, masks are kept. "
-        "No-ops at which the task's success held (its reward is the env's reward_scale) are kept: holding still "
-        "at the goal is what success asks there.",
+        "data with such pauses learn to stall; next_obs is joined up across the dropped steps, masks are kept.",
     )
     p.add_input("dataset", "--dataset", cli.dataset, help="HDF5 file")
     p.add_argument("--output", "-o", type=cli.output_dataset, required=True, help="new HDF5 file")
@@ -292,9 +290,10 @@ def build_drop_noops_parser() -> Parser:
         help="largest action magnitude of a no-op, a fraction of full scale (default 0: exactly zero)",
     )
     p.add_argument(
-        "--drop-held",
+        "--keep-held",
         action="store_true",
-        help="drop the no-ops at which the task's success held too (a policy trained so keeps moving at the goal)",
+        help="keep the no-ops at which the task's success held (its reward is the env's reward_scale): the hold "
+        "at the goal",
     )
     p.add_argument("--force", action="store_true", help="overwrite --output")
     return p
@@ -304,9 +303,9 @@ def build_drop_noops_parser() -> Parser:
 def drop_noops_main(args: argparse.Namespace) -> int:
     """veragmil-drop-noops: copy a dataset without its no-op steps."""
     _refuse_existing(args.output, args.force)
-    demos, before, after, held = drop_noops(args.dataset, args.output, args.threshold, not args.drop_held)
+    demos, before, after, held = drop_noops(args.dataset, args.output, args.threshold, args.keep_held)
     dropped = before - after
     share = dropped / before if before else 0.0
-    kept = f"; kept {held} at which the task's success held" if not args.drop_held else ""
+    kept = f"; kept {held} at which the task's success held" if args.keep_held else ""
     print(f"wrote {demos} demos to {args.output}: dropped {dropped} no-op steps of {before} ({_pct(share)}){kept}")
     return 0

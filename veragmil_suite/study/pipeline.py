@@ -14,8 +14,7 @@ or partial grid continues where it stopped and a larger one reuses the pieces of
   asked for (a shorter one, from a killed run, is recorded again: attempts are seeded, so the demos are the same).
   The foods' files are merged into ``data/<profile>.hdf5`` with a mask ``first<N>`` per demo count: the first N
   demos of each food, so smaller datasets are prefixes of larger ones. With ``drop_noops``, the models train on
-  ``data/<profile>-no-noops.hdf5``, the merged file without its no-op steps (those at which the task's success held
-  kept), made again when the merged file changes.
+  ``data/<profile>-no-noops.hdf5``, the merged file without its no-op steps, made again when the merged file changes.
 - Training: ``runs/<profile>_<algo>_<N>demos_<steps>steps`` (``_seed<S>`` added for a training seed other than the
   default, ``seed + 1``), complete once its last checkpoint exists and its
   config equals the one asked for (a different one is refused: pick another output directory).

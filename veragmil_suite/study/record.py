@@ -303,18 +303,15 @@ def _recording_of(path: Path) -> tuple[tuple, dict | None]:
 
 
 def drop_noops_once(merged: Path, path: Path, say=print) -> None:
-    """Writes ``path``: ``merged`` without its no-op steps (veragmil-drop-noops, the no-ops at which success held
-    kept), unless ``path`` is such a copy of ``merged`` as it is now (the same merged inputs, steps and demos)."""
+    """Writes ``path``: ``merged`` without its no-op steps (veragmil-drop-noops), unless ``path`` is such a copy of
+    ``merged`` as it is now (the same merged inputs, steps and demos, every no-op dropped)."""
     if path.exists():
         try:
             made, dropped = _recording_of(path)
         except DatasetError:
             made, dropped = None, None  # unreadable: written again
-        if dropped is not None and dropped.get("keep_held", False) and made == _recording_of(merged)[0]:
+        if dropped is not None and not dropped.get("keep_held", False) and made == _recording_of(merged)[0]:
             say(f"skipping dropping no-op steps: {path} holds {merged.name} without them")
             return
-    demos, before, after, held = drop_noops(merged, path)
-    say(
-        f"dropped {before - after} no-op steps of {before} from {merged.name} into {path.name} ({demos} demos; "
-        f"{held} no-ops at which success held kept)"
-    )
+    demos, before, after, _ = drop_noops(merged, path)
+    say(f"dropped {before - after} no-op steps of {before} from {merged.name} into {path.name} ({demos} demos)")

@@ -189,8 +189,8 @@ class PipelineSettings:
     drop_noops: bool = setting(
         Option(
             "train on each profile's data without its no-op steps (veragmil-drop-noops: the operator's pauses, "
-            "which policies learn as stalls; those at which the task's success held are kept), written beside it "
-            "as data/<profile>-no-noops.hdf5; the models' columns and runs say no-noops",
+            "which policies learn as stalls), written beside it as data/<profile>-no-noops.hdf5; the models' "
+            "columns and runs say no-noops",
             action="store_true",
         ),
         False,
