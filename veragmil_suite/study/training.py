@@ -4,6 +4,7 @@ skipped when complete.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -76,9 +77,17 @@ def _what_is_trained(config: dict) -> dict:
 def training_data_digest(config: dict) -> str:
     """What a run trains on, as a digest: the demos of its filter key in order, each one's steps and actions. A
     recording made again from the same seeds gives the same digest; a cut by another rule or other demos do not."""
+    path = Path(config["train"]["data"]).resolve()
+    stat = path.stat()
+    return _digest(str(path), stat.st_ino, stat.st_size, stat.st_mtime_ns, config["train"].get("hdf5_filter_key"))
+
+
+@functools.lru_cache(maxsize=64)
+def _digest(path: str, inode: int, size: int, mtime_ns: int, key: str | None) -> str:
+    """training_data_digest of one version of a file (a study asks for it several times a run: 0.3 s each for
+    the 300 MB spacemouse recording)."""
     digest = hashlib.sha256()
-    with open_dataset(config["train"]["data"]) as f:
-        key = config["train"].get("hdf5_filter_key")
+    with open_dataset(path) as f:
         names = [n.decode() for n in f["mask"][key][()]] if key else demo_names(f)
         for name in names:
             actions = np.ascontiguousarray(f["data"][name]["actions"][()])
