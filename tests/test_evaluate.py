@@ -481,3 +481,70 @@ def test_reading_a_checkpoints_metadata_or_checking_a_checkpoint_argument_import
     )
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert result.stdout.strip() == "ScoopGranular []", result.stdout + result.stderr[-2000:]
+
+
+def test_an_rnn_horizon_sets_when_a_bc_rnn_checkpoint_resets_its_hidden_state(tmp_path):
+    """--rnn-horizon N: a BC-RNN rolls out with its LSTM's state reset every N steps instead of its config's
+    algo.rnn.horizon; the other agents run as they are, and the journal tells the two apart."""
+    import numpy as np
+    import torch
+    from helpers.tiny_dataset import record_tiny_dataset
+
+    from veragmil_suite.learning import robomimic_compat
+    from veragmil_suite.learning.checkpoints import read_checkpoint, rnn_horizon_of, with_rnn_horizon
+    from veragmil_suite.study.training import train_checkpoint, training_config
+
+    dataset = record_tiny_dataset(str(tmp_path / "tiny.hdf5"), episodes=2, steps=12, valid_episodes=1)
+    config = training_config("bc_rnn", Path(dataset), tmp_path / "runs", "tiny_rnn", epochs=1, steps_per_epoch=3)
+    config["train"]["batch_size"] = 4
+    checkpoint = str(train_checkpoint(config, tmp_path)[0][1])
+    ckpt = read_checkpoint(checkpoint)
+    assert rnn_horizon_of(ckpt) == config["algo"]["rnn"]["horizon"] == 10
+
+    robomimic_compat.install()
+    import robomimic.utils.file_utils as FileUtils
+
+    def actions(ckpt_dict: dict, steps: int) -> list:
+        """The policy's actions on one observation shown ``steps`` times."""
+        policy, _ = FileUtils.policy_from_checkpoint(ckpt_dict=ckpt_dict, device=torch.device("cpu"))
+        policy.start_episode()
+        shapes = ckpt_dict["shape_metadata"]["all_shapes"]
+        obs = {k: np.full(shape, 0.1, dtype=np.float32) for k, shape in shapes.items()}
+        return [policy(ob=obs) for _ in range(steps)]
+
+    every_3 = actions(with_rnn_horizon(ckpt, 3), 4)
+    assert np.array_equal(every_3[3], every_3[0])  # a fresh hidden state on the same observation
+    stock = actions(ckpt, 4)
+    assert np.array_equal(stock[0], every_3[0]) and not np.array_equal(stock[3], stock[0])
+    with pytest.raises(ValueError, match="without an RNN"):
+        with_rnn_horizon({**ckpt, "config": json.dumps({"algo": {"rnn": {"enabled": False}}})}, 3)
+
+    out = tmp_path / "eval"
+    agents = {"RNN": checkpoint, "expert": "expert"}
+    result = evaluate(
+        agents, ["pasta"], 1, processes=1, horizon=4, env_kwargs=CHEAP, output_dir=str(out), progress=False,
+        rnn_horizon=2,
+    )  # fmt: skip
+    assert result.config["rnn_horizon"] == {"RNN": 2}  # the expert has no RNN
+    keys = [json.loads(json.loads(line)["key"]) for line in (out / JOURNAL_NAME).read_text().splitlines()]
+    assert sorted(str(k[-1]) for k in keys) == sorted([str({"rnn_horizon": 2}), str(CHEAP)])
+    # resumed with the checkpoint's own horizon, the RNN's episode runs again, the expert's is taken
+    said = []
+    again = evaluate(
+        agents, ["pasta"], 1, processes=1, horizon=4, env_kwargs=CHEAP, output_dir=str(out), progress=False,
+        resume=True, say=said.append,
+    )  # fmt: skip
+    assert "rnn_horizon" not in again.config and any("skipping 1 evaluation episodes" in s for s in said)
+    with pytest.raises(ValueError, match="no agent is one"):
+        evaluate({"expert": "expert"}, ["pasta"], 1, processes=1, horizon=4, env_kwargs=CHEAP, rnn_horizon=2)
+
+
+def test_an_rnn_horizon_that_is_no_count_or_has_no_recurrent_agent_exits_2(tmp_path, capsys):
+    from veragmil_suite.scripts.evaluate import main
+
+    out = tmp_path / "eval"
+    assert main(["--agent", "expert", "--rnn-horizon", "0", "--output-dir", str(out)]) == 2
+    assert "--rnn-horizon" in capsys.readouterr().err
+    assert main(["--agent", "expert", "--rnn-horizon", "20", "--output-dir", str(out), "--foods", "pasta"]) == 2
+    assert "recurrent checkpoints (BC-RNN" in capsys.readouterr().err
+    assert not out.exists()

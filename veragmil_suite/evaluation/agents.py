@@ -37,7 +37,7 @@ from veragmil_suite.environments.episode import SUCCESS_HOLD_S, run_until_done
 from veragmil_suite.environments.scoop import ScoopGranular
 from veragmil_suite.environments.task_state import DEFAULT_SPILL_LIMIT
 from veragmil_suite.learning import robomimic_compat
-from veragmil_suite.learning.checkpoints import read_checkpoint
+from veragmil_suite.learning.checkpoints import read_checkpoint, with_rnn_horizon
 from veragmil_suite.learning.observation_sets import WRENCH_OBSERVATIONS
 from veragmil_suite.models.foods import (
     FOODS,
@@ -185,9 +185,10 @@ class EpisodeTask:
     video_path: str | None = None
     video_camera: str = DEFAULT_VIDEO_CAMERA
     policy_device: str = "cpu"
+    rnn_horizon: int | None = None  # a recurrent checkpoint's hidden-state reset period (None: its config's)
 
 
-_POLICIES: dict = {}  # per worker process: (checkpoint path, device) -> (RolloutPolicy, checkpoint dict)
+_POLICIES: dict = {}  # per worker process: (checkpoint path, device, rnn horizon) -> (RolloutPolicy, checkpoint dict)
 POLICY_DEVICES = ("cpu", "cuda")  # where a worker runs a checkpoint's networks (EpisodeTask.policy_device)
 
 
@@ -243,20 +244,23 @@ def _expert_env(task: EpisodeTask):
     return env, obs, expert.agent, env.step
 
 
-def _policy(path: str, device: str = "cpu"):
-    if (path, device) not in _POLICIES:
+def _policy(path: str, device: str = "cpu", rnn_horizon: int | None = None):
+    key = (path, device, rnn_horizon)
+    if key not in _POLICIES:
         import torch  # heavy: torch, only when used
 
         torch.set_num_threads(int(os.environ.get("VERAGMIL_TORCH_THREADS", "1")))
+        ckpt = None if rnn_horizon is None else with_rnn_horizon(read_checkpoint(path), rnn_horizon)
 
         # robomimic's banner of observation keys, printed by every worker that loads a policy
         with contextlib.redirect_stdout(io.StringIO()):
             robomimic_compat.install()
             import robomimic.utils.file_utils as FileUtils  # heavy: robomimic, imports torch
 
-            policy = FileUtils.policy_from_checkpoint(ckpt_path=path, device=torch.device(device))
-            _POLICIES[(path, device)] = policy
-    return _POLICIES[(path, device)]
+            _POLICIES[key] = FileUtils.policy_from_checkpoint(
+                ckpt_path=path, ckpt_dict=ckpt, device=torch.device(device)
+            )
+    return _POLICIES[key]
 
 
 def _checkpoint_env(task: EpisodeTask):
@@ -265,7 +269,7 @@ def _checkpoint_env(task: EpisodeTask):
     import robomimic.utils.env_utils as EnvUtils  # heavy: robomimic, imports torch
     import torch  # heavy: torch, only when used
 
-    policy, ckpt = _policy(task.spec.target, task.policy_device)
+    policy, ckpt = _policy(task.spec.target, task.policy_device, task.rnn_horizon)
     meta = copy.deepcopy(ckpt["env_metadata"])
     meta["env_kwargs"] = _env_kwargs(task, checkpoint_base_kwargs(meta))
     if set(ckpt["shape_metadata"]["all_obs_keys"]) & set(WRENCH_OBSERVATIONS):

@@ -37,6 +37,7 @@ from veragmil_suite.evaluation.agents import (
     run_task,
 )
 from veragmil_suite.evaluation.reporting import EvaluationResult, json_safe, video_name
+from veragmil_suite.learning.checkpoints import read_checkpoint, rnn_horizon_of
 from veragmil_suite.models.humanoid import check_robot
 from veragmil_suite.utils.canonical import canonical
 from veragmil_suite.utils.distributed import Resources, WorkerLost, ray_session, run_pieces
@@ -60,6 +61,7 @@ def evaluate(
     ray: str | None = None,
     robot: str | None = None,
     policy_device: str = "cpu",
+    rnn_horizon: int | None = None,
 ) -> EvaluationResult:
     """
     Scores each agent (name -> SPEC, see parse_spec) for ``episodes`` episodes per food, env seeds ``seed + i``.
@@ -70,16 +72,20 @@ def evaluate(
     ``env_kwargs`` go to every environment (e.g. n_grains for a cheap scene); ``videos`` first episodes per
     (agent, food) are saved as mp4 under ``output_dir``/videos. Writes the outputs when ``output_dir`` is given,
     and journals each finished episode in ``output_dir``/episodes.jsonl as it ends: with ``resume``, episodes
-    the journal holds (same agent SPEC, food, seed, horizon and env_kwargs; their video, if asked for, on disk)
+    the journal holds (same agent SPEC, food, seed, horizon, env_kwargs and rnn horizon; their video, if asked
+    for, on disk)
     are taken from it instead of run again, whatever the agent is named now.
 
     Episodes run in ``processes`` worker processes, or with ``ray`` (a cluster's address, or
     distributed.THIS_MACHINE) as Ray tasks of one CPU each, on the piles settled here; either way the journal and
     the outputs are written here as episodes end. Their checkpoints' networks run on ``policy_device`` (POLICY_DEVICES).
+    With ``rnn_horizon`` the recurrent checkpoints (BC-RNN) reset their hidden state every ``rnn_horizon`` steps instead
+    of their config's ``algo.rnn.horizon`` (robomimic's BC-RNN resets it every ``train.seq_length`` steps by default);
+    the others run as they are.
 
     Raises:
         ValueError: [unknown food, bad agent SPEC, non-positive sizes, videos without output_dir, checkpoints of
-            another robot, an unknown policy device]
+            another robot, an unknown policy device, an rnn_horizon without a recurrent checkpoint]
         EvaluationError: [an episode failed in a worker (its traceback in the message)]
     """
     foods = check_foods(list(foods))
@@ -95,6 +101,7 @@ def evaluate(
     if policy_device not in POLICY_DEVICES:
         raise ValueError(f"policy device {policy_device!r}; accepted: {', '.join(POLICY_DEVICES)}")
     metas = {name: env_metadata(spec.target) for name, spec in specs.items() if spec.kind == "checkpoint"}
+    rnn_horizons = _rnn_horizons(specs, rnn_horizon)
     robot = _evaluated_robot(metas, robot)
     if robot != EXPERT_ROBOT:
         env_kwargs = {**(env_kwargs or {}), "robots": robot}
@@ -109,7 +116,17 @@ def evaluate(
             for food in foods:
                 video = str(video_dir / video_name(name, food, i)) if i < videos else None
                 task = EpisodeTask(
-                    name, spec, food, i, seed + i, horizon, dict(env_kwargs or {}), video, video_camera, policy_device
+                    name,
+                    spec,
+                    food,
+                    i,
+                    seed + i,
+                    horizon,
+                    dict(env_kwargs or {}),
+                    video,
+                    video_camera,
+                    policy_device,
+                    rnn_horizons.get(name),
                 )
                 tasks.append(task)
     for name, spec in specs.items():
@@ -148,6 +165,8 @@ def evaluate(
         episodes_run=episodes_run,
         versions=versions(),
     )
+    if rnn_horizons:  # only when asked: the recurrent agents' reset period, by agent
+        config["rnn_horizon"] = rnn_horizons
     result = EvaluationResult(records, list(specs), foods, config)
     if output_dir is not None:
         result.write(output_dir)
@@ -169,6 +188,21 @@ def _recorded_settings(
         return next(iter(values.values())) if len(set(values.values())) == 1 else values
 
     return shared("horizon"), {**env_kwargs, "physics": shared("physics")}
+
+
+def _rnn_horizons(specs: dict, rnn_horizon: int | None) -> dict[str, int]:
+    """The recurrent checkpoints' hidden-state reset periods by agent, when ``rnn_horizon`` overrides their
+    configs'; a ValueError for a non-positive one or when no agent is a recurrent checkpoint."""
+    if rnn_horizon is None:
+        return {}
+    if int(rnn_horizon) < 1:
+        raise ValueError(f"rnn horizon must be a positive integer, got {rnn_horizon}")
+    recurrent = [n for n, s in specs.items() if s.kind == "checkpoint" and rnn_horizon_of(read_checkpoint(s.target))]
+    if not recurrent:
+        raise ValueError(
+            "an rnn horizon applies to recurrent checkpoints (BC-RNN: algo.rnn.enabled), and no agent is one"
+        )
+    return {name: int(rnn_horizon) for name in recurrent}
 
 
 def _evaluated_robot(metas: dict, robot: str | None) -> str:
@@ -277,6 +311,8 @@ class Journal:
             parts += [task.video_path, task.video_camera]
         if task.policy_device != "cpu":
             parts += [task.policy_device]
+        if task.rnn_horizon is not None:
+            parts += [{"rnn_horizon": task.rnn_horizon}]
         return Journal._canonical_key(parts)
 
     @staticmethod
@@ -285,7 +321,7 @@ class Journal:
         parts = list(parts)
         if parts[0] != "expert":  # a checkpoint's or dataset's path, not a profile
             parts[1] = os.path.abspath(parts[1])
-        if len(parts) >= 8:  # a video's path and camera follow the env kwargs
+        if len(parts) >= 8 and str(parts[6]).endswith(".mp4"):  # a video's path and camera follow the env kwargs
             parts[6] = os.path.abspath(parts[6])
         return canonical(parts)
 

@@ -2,6 +2,7 @@
 the file, onto the CPU), without importing robomimic: its import, torchvision's with it, costs seconds that a
 program reading only a checkpoint's metadata or checking its keys need not pay."""
 
+import json
 import os
 
 
@@ -10,3 +11,21 @@ def read_checkpoint(path: str) -> dict:
     import torch  # heavy: torch, only when a checkpoint is read
 
     return torch.load(os.path.expanduser(path), map_location="cpu")
+
+
+def rnn_horizon_of(ckpt: dict) -> int | None:
+    """How many rollout steps a recurrent policy keeps its hidden state before robomimic resets it (the config's
+    ``algo.rnn.horizon``); None for a policy without an RNN."""
+    rnn = json.loads(ckpt["config"]).get("algo", {}).get("rnn", {})
+    return int(rnn["horizon"]) if rnn.get("enabled") else None
+
+
+def with_rnn_horizon(ckpt: dict, horizon: int) -> dict:
+    """The checkpoint with its recurrent policy's hidden state reset every ``horizon`` rollout steps: the config's
+    ``algo.rnn.horizon``, which robomimic reads when it builds the rollout policy (training used
+    ``train.seq_length`` and is unchanged). ValueError for a policy without an RNN."""
+    if rnn_horizon_of(ckpt) is None:
+        raise ValueError(f"a {ckpt.get('algo_name', 'policy')} checkpoint without an RNN has no rnn horizon to set")
+    config = json.loads(ckpt["config"])
+    config["algo"]["rnn"]["horizon"] = int(horizon)
+    return {**ckpt, "config": json.dumps(config, indent=4)}

@@ -95,6 +95,13 @@ def build_parser() -> Parser:
         default="cpu",
         help="where the checkpoints' networks run in this machine's workers (cuda: each worker on the GPU)",
     )
+    p.add_argument(
+        "--rnn-horizon",
+        type=cli.count,
+        default=None,
+        help="reset the recurrent checkpoints' (BC-RNN's) hidden state every N rollout steps instead of their "
+        "config's algo.rnn.horizon (robomimic's: the training sequence length); other agents run as they are",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_ray_argument(p, "the episodes")
     return p
@@ -147,6 +154,7 @@ def _evaluate(agents: dict[str, str], args: argparse.Namespace):
         robot=args.robots,
         resume=args.resume,
         policy_device=args.policy_device,
+        rnn_horizon=args.rnn_horizon,
         say=print,
     )
 
