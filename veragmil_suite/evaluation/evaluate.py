@@ -73,8 +73,7 @@ def evaluate(
     (agent, food) are saved as mp4 under ``output_dir``/videos. Writes the outputs when ``output_dir`` is given,
     and journals each finished episode in ``output_dir``/episodes.jsonl as it ends: with ``resume``, episodes
     the journal holds (same agent SPEC, food, seed, horizon, env_kwargs and rnn horizon; their video, if asked
-    for, on disk)
-    are taken from it instead of run again, whatever the agent is named now.
+    for, on disk) are taken from it instead of run again, whatever the agent is named now.
 
     Episodes run in ``processes`` worker processes, or with ``ray`` (a cluster's address, or
     distributed.THIS_MACHINE) as Ray tasks of one CPU each, on the piles settled here; either way the journal and
