@@ -143,6 +143,22 @@ def test_observation_sets_name_their_runs_and_columns_and_the_object_set_keeps_i
         PipelineSettings(**grid, obs_sets=["counts"])
 
 
+def test_an_rnn_horizon_names_the_recurrent_models_columns_trains_the_same_runs_and_needs_one(tmp_path):
+    """--rnn-horizon N changes how the recurrent models roll out, not what is trained: the same runs, columns that
+    say it; a study without a recurrent algorithm refuses it (exit 2) before it writes anything."""
+    grid = dict(output_dir=str(tmp_path), algos=["bc", "bc_rnn"], seed=0, score_demonstrators=False)
+    every_20 = PipelineSettings(**grid, rnn_horizon=20)
+    assert every_20.own_agents() == ["expert BC no-load obs", "expert BC-RNN no-load obs rnn.horizon 20"]
+    assert every_20.run_name("expert", "bc_rnn", 30, 1) == PipelineSettings(**grid).run_name("expert", "bc_rnn", 30, 1)
+    assert ALGORITHMS["bc_rnn"].recurrent and not ALGORITHMS["bc"].recurrent
+    with pytest.raises(ValueError, match=r"rnn_horizon applies to recurrent algorithms \(bc_rnn, bc_rnn_gmm\)"):
+        PipelineSettings(output_dir=str(tmp_path), algos=["bc", "bcq"], rnn_horizon=20)
+    out = tmp_path / "s"
+    args = ["--output-dir", out, "--algos", "bc", "bcq", "--rnn-horizon", "20"]
+    result = run_program("veragmil-study", *args, timeout=60, check=False)
+    assert result.returncode == 2 and "algos ['bc', 'bcq'] has none" in result.stderr and not out.exists()
+
+
 def test_the_seed_table_gives_each_seeds_rate_and_their_mean_and_range():
     from veragmil_suite.evaluation.agents import EpisodeRecord
     from veragmil_suite.evaluation.reporting import EvaluationResult, seed_markdown, seed_spread
@@ -543,11 +559,11 @@ def test_a_study_records_on_its_physics(tmp_path):
 def test_a_study_with_drop_noops_trains_on_its_data_without_the_operators_pauses(tmp_path):
     """--drop-noops: the spacemouse operator's pauses (zero actions) are cut from the merged recording into
     data/<profile>-no-noops.hdf5, the models train on that file and their runs and columns say so (when the file
-    is made again: the next test)."""
+    is made again: the next test). With --rnn-horizon the BC-RNN is scored with its LSTM reset that often."""
     out = tmp_path / "study"
-    args = ["--profiles", "spacemouse", "--algos", "bc", "--train-foods", "pasta", "--eval-foods", "pasta"]
+    args = ["--profiles", "spacemouse", "--algos", "bc_rnn", "--train-foods", "pasta", "--eval-foods", "pasta"]
     args += ["--n-grains", "12", "--demos-per-food", "1", "--epochs", "1", "--steps-per-epoch", "5", "--episodes", "1"]
-    args += ["--no-operators", "--drop-noops", "--output-dir", out]
+    args += ["--no-operators", "--drop-noops", "--rnn-horizon", "3", "--output-dir", out]
     first = run_program("veragmil-study", *args, check=False)
     assert first.returncode == 0, first.stdout[-3000:] + first.stderr[-3000:]
     merged, cut = out / "data" / "spacemouse.hdf5", out / "data" / "spacemouse-no-noops.hdf5"
@@ -558,10 +574,11 @@ def test_a_study_with_drop_noops_trains_on_its_data_without_the_operators_pauses
         assert not any((b[f"data/{n}/actions"][()] == 0).all(axis=1).any() for n in b["data"])
         assert b["mask/first1"][()].tolist() == a["mask/first1"][()].tolist()
     assert f"dropped {zero} no-op steps of {before} from spacemouse.hdf5" in first.stdout
-    config = json.loads((out / "runs" / "spacemouse_bc_1demos_5steps_obs-no-load_no-noops.json").read_text())
-    assert config["train"]["data"] == str(cut)
+    config = json.loads((out / "runs" / "spacemouse_bc_rnn_1demos_5steps_obs-no-load_no-noops.json").read_text())
+    assert config["train"]["data"] == str(cut) and config["algo"]["rnn"]["horizon"] == 10
     results = json.loads((out / "eval" / "results.json").read_text())
-    assert {e["agent"] for e in results["episodes"]} == {"spacemouse BC no-load obs no-noops"}
+    model = "spacemouse BC-RNN no-load obs no-noops rnn.horizon 3"
+    assert {e["agent"] for e in results["episodes"]} == {model} and results["config"]["rnn_horizon"] == {model: 3}
 
 
 def test_the_copy_without_noops_is_made_again_only_when_the_recording_changed(tmp_path):

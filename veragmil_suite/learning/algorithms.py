@@ -4,8 +4,11 @@ another robomimic algorithm joins the grid with a function decorated by register
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
+from pathlib import Path
 
+from veragmil_suite.utils.asset_paths import config_path
 from veragmil_suite.utils.registry import Registry
 
 
@@ -22,6 +25,12 @@ class StudyAlgorithm:
     name: str
     config: str
     label: str
+
+    @property
+    def recurrent(self) -> bool:
+        """Whether its policy keeps a hidden state through a rollout (its config's ``algo.rnn.enabled``)."""
+        config = json.loads(Path(config_path(self.config)).read_text())
+        return bool(config["algo"].get("rnn", {}).get("enabled"))
 
 
 ALGORITHMS: Registry[StudyAlgorithm] = Registry("algorithm", StudyAlgorithm)

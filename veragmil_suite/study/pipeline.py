@@ -164,7 +164,7 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True, verbose: boo
         if settings.n_grains is not None:
             env_kwargs["n_grains"] = settings.n_grains
         start = time.perf_counter()
-        kwargs = dict(env_kwargs=env_kwargs)
+        kwargs = dict(env_kwargs=env_kwargs, rnn_horizon=settings.rnn_horizon)
         result = evaluate(
             agents,
             foods=settings.eval_foods,

@@ -195,6 +195,15 @@ class PipelineSettings:
         ),
         False,
     )
+    rnn_horizon: int | None = setting(
+        Option(
+            "evaluate the recurrent models (BC-RNN, and any --agent's) with their hidden state reset every N rollout "
+            "steps instead of their configs' algo.rnn.horizon (the training sequence length, 10); their columns "
+            "say rnn.horizon N",
+            cli.count,
+        ),
+        None,
+    )
     agents: dict[str, str] = setting(
         Option(
             f"also evaluate this agent beside the run's own (repeat for more): SPEC is {SPEC_HELP} (default: "
@@ -250,6 +259,14 @@ class PipelineSettings:
         self.train_seeds = list(dict.fromkeys(int(s) for s in self.train_seeds or [self.seed + 1]))
         if any(s < 0 for s in self.train_seeds):
             raise ValueError(f"train_seeds must be integers >= 0 (torch's seeds), got {self.train_seeds!r}")
+        if self.rnn_horizon is not None:
+            if int(self.rnn_horizon) < 1:
+                raise ValueError(f"rnn_horizon must be a positive integer, got {self.rnn_horizon!r}")
+            recurrent = sorted(name for name, algo in ALGORITHMS.items() if algo.recurrent)
+            if not any(ALGORITHMS[algo].recurrent for algo in self.algos):
+                raise ValueError(
+                    f"rnn_horizon applies to recurrent algorithms ({', '.join(recurrent)}); algos {self.algos} has none"
+                )
         if isinstance(self.obs_sets, str):
             self.obs_sets = [self.obs_sets]
         self.obs_sets = list(dict.fromkeys(check_observation_set(name) for name in self.obs_sets))
@@ -296,6 +313,7 @@ class PipelineSettings:
         (without ``train_seed``: the recipe's label, which names all its seeds)."""
         label = f"{profile} {ALGORITHMS[algo].label} {obs_set} obs"
         label += " no-noops" if self.drop_noops else ""
+        label += f" rnn.horizon {self.rnn_horizon}" if self.rnn_horizon and ALGORITHMS[algo].recurrent else ""
         label += f" {demos_per_food} demos" if len(self.demos_per_food) > 1 else ""
         label += f" {_steps_label(steps)} steps" if self.sweeps_steps else ""
         label += f" seed {train_seed}" if train_seed is not None and len(self.train_seeds) > 1 else ""
