@@ -63,6 +63,24 @@ def test_agents_of_two_evaluations_pool_into_one_with_seed_tables(tmp_path):
     assert "| expert BC | 1, 2, 4 |" in (out / "seeds.md").read_text()
 
 
+def test_an_agents_rnn_horizon_comes_with_it_into_the_pool_and_its_seed_tables(tmp_path):
+    """A BC-RNN scored with --rnn-horizon keeps that setting under its new name; the others have none."""
+    reset = _evaluation(tmp_path / "h20.json", {"BC-RNN": 3, "expert BC": 1}, rnn_horizon={"BC-RNN": 20})
+    stock = _evaluation(tmp_path / "h10.json", {"BC-RNN": 2})
+    out = tmp_path / "pooled"
+    choices = ["BC-RNN h20 seed 1=" + f"{reset}:BC-RNN", "BC-RNN h20 seed 2=" + f"{reset}:BC-RNN"]
+    choices += [f"BC-RNN seed 1={stock}:BC-RNN", f"BC={reset}:expert BC"]
+    assert main([str(out), *[a for c in choices for a in ("--agent", c)]]) == 0
+    config = json.loads((out / "results.json").read_text())["config"]
+    assert config["rnn_horizon"] == {"BC-RNN h20 seed 1": 20, "BC-RNN h20 seed 2": 20}
+    assert json.loads((out / "seeds" / "results.json").read_text())["config"]["rnn_horizon"] == {"BC-RNN h20": 20}
+    assert (
+        (out / "table.md")
+        .read_text()
+        .endswith("(--rnn-horizon; others: their config's): BC-RNN h20 seed 1 20, BC-RNN h20 seed 2 20\n")
+    )
+
+
 def test_evaluations_that_differ_in_what_decides_an_episode_are_refused(tmp_path):
     old = _evaluation(tmp_path / "old.json", {"expert BC seed 1": 4})
     new = _evaluation(tmp_path / "new.json", {"expert BC": 1}, horizon=300)

@@ -150,11 +150,14 @@ def write_seed_tables(result, points: list[dict], out_dir: Path) -> None:
         writer.writerows(rows)
     (out_dir / "seeds.md").write_text(seed_markdown(rows))
     recipe_of = {p["agent"]: p["recipe"] for p in points}
+    config = dict(result.config, pooled_training_seeds=sorted({p["train_seed"] for p in points}))
+    if "rnn_horizon" in config:
+        config["rnn_horizon"] = {recipe_of.get(a, a): h for a, h in config["rnn_horizon"].items()}
     pooled = EvaluationResult(
         episodes=[replace(e, agent=recipe_of.get(e.agent, e.agent)) for e in result.episodes],
         agents=list(dict.fromkeys(recipe_of.get(a, a) for a in result.agents)),
         foods=result.foods,
-        config=dict(result.config, pooled_training_seeds=sorted({p["train_seed"] for p in points})),
+        config=config,
     )
     pooled.write(str(out_dir / "seeds"))
 
@@ -179,6 +182,7 @@ def pool(choices: list[tuple[str, Path, str]]) -> tuple[EvaluationResult, list[d
     episodes: list[EpisodeRecord] = []
     agents: dict[str, str] = {}
     sources: dict[str, str] = {}
+    rnn_horizons: dict[str, int] = {}
     reference: tuple[Path, dict] | None = None
     for name, source, agent in choices:
         if name in agents:
@@ -206,12 +210,16 @@ def pool(choices: list[tuple[str, Path, str]]) -> tuple[EvaluationResult, list[d
             raise ValueError(f"{source} has no agent {agent!r}; it has {sorted(known)}")
         agents[name] = known[agent]
         sources[name] = f"{source}:{agent}"
+        if agent in config.get("rnn_horizon", {}):  # its LSTM's reset period, when the evaluation set it
+            rnn_horizons[name] = config["rnn_horizon"][agent]
         episodes += [
             replace(EpisodeRecord.from_dict(e, config.get("env_kwargs")), agent=name)
             for e in loaded[source]["episodes"]
             if e["agent"] == agent
         ]
     config = {k: reference[1][k] for k in SHARED_SETTINGS if k in reference[1]}
+    if rnn_horizons:
+        config["rnn_horizon"] = rnn_horizons
     result = EvaluationResult(
         episodes=episodes,
         agents=list(agents),

@@ -178,8 +178,12 @@ def _fmt(value: float, digits: int = 1) -> str:
     return MISSING if value is None or math.isnan(value) else f"{value:.{digits}f}"
 
 
-def markdown_tables(summary: dict, agents: list[str], foods: list[str]) -> str:
-    """Tables II and III as markdown (the paper's layout: rows are foods, one column per agent)."""
+def markdown_tables(
+    summary: dict, agents: list[str], foods: list[str], rnn_horizons: dict[str, int] | None = None
+) -> str:
+    """Tables II and III as markdown (the paper's layout: rows are foods, one column per agent), ending with what
+    decided the episodes beside the agents: the physics, the spill limit and, where set, the recurrent agents'
+    hidden-state reset period (``rnn_horizons``)."""
     tables = table_rows(summary, agents, foods)
     lines = [
         "Table II: success rate (%, 95% Wilson interval in brackets)",
@@ -219,6 +223,9 @@ def markdown_tables(summary: dict, agents: list[str], foods: list[str]) -> str:
         lines.append(f"| {row['food'] if is_food else '*' + row['food'] + '*'} | " + " | ".join(cells) + " |")
     lines += ["", f"Physics (grain models, veragmil_suite.models.foods): {', '.join(physics_of(summary))}"]
     lines += [f"Spill limit of success (ScoopGranular's spill_limit_of): {', '.join(spill_limits_of(summary))}"]
+    if rnn_horizons:
+        every = ", ".join(f"{agent} {steps}" for agent, steps in rnn_horizons.items())
+        lines += [f"RNN hidden state reset every N rollout steps (--rnn-horizon; others: their config's): {every}"]
     return "\n".join(lines) + "\n"
 
 
@@ -319,7 +326,7 @@ class EvaluationResult:
         self.summary = summarize(self.episodes)
 
     def markdown(self) -> str:
-        return markdown_tables(self.summary, self.agents, self.foods)
+        return markdown_tables(self.summary, self.agents, self.foods, self.config.get("rnn_horizon"))
 
     def stages_markdown(self) -> str:
         return stage_table(self.summary, self.agents, self.foods)
