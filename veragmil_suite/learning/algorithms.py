@@ -8,6 +8,7 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
+from veragmil_suite.learning.checkpoints import config_rnn_horizon
 from veragmil_suite.utils.asset_paths import config_path
 from veragmil_suite.utils.registry import Registry
 
@@ -26,11 +27,14 @@ class StudyAlgorithm:
     config: str
     label: str
 
+    def stock_config(self) -> dict:
+        """Its robomimic config as configs/json holds it."""
+        return json.loads(Path(config_path(self.config)).read_text())
+
     @property
     def recurrent(self) -> bool:
         """Whether its policy keeps a hidden state through a rollout (its config's ``algo.rnn.enabled``)."""
-        config = json.loads(Path(config_path(self.config)).read_text())
-        return bool(config["algo"].get("rnn", {}).get("enabled"))
+        return config_rnn_horizon(self.stock_config()) is not None
 
 
 ALGORITHMS: Registry[StudyAlgorithm] = Registry("algorithm", StudyAlgorithm)

@@ -13,19 +13,24 @@ def read_checkpoint(path: str) -> dict:
     return torch.load(os.path.expanduser(path), map_location="cpu")
 
 
-def rnn_horizon_of(ckpt: dict) -> int | None:
-    """How many rollout steps a recurrent policy keeps its hidden state before robomimic resets it (the config's
-    ``algo.rnn.horizon``); None for a policy without an RNN."""
-    rnn = json.loads(ckpt["config"]).get("algo", {}).get("rnn", {})
+def config_rnn_horizon(config: dict) -> int | None:
+    """How many rollout steps the recurrent policy of a robomimic config keeps its hidden state before robomimic
+    resets it (``algo.rnn.horizon``); None for a policy without an RNN."""
+    rnn = config.get("algo", {}).get("rnn", {})
     return int(rnn["horizon"]) if rnn.get("enabled") else None
+
+
+def rnn_horizon_of(ckpt: dict) -> int | None:
+    """config_rnn_horizon of a checkpoint's config (stored as JSON text)."""
+    return config_rnn_horizon(json.loads(ckpt["config"]))
 
 
 def with_rnn_horizon(ckpt: dict, horizon: int) -> dict:
     """The checkpoint with its recurrent policy's hidden state reset every ``horizon`` rollout steps: the config's
     ``algo.rnn.horizon``, which robomimic reads when it builds the rollout policy (training used
     ``train.seq_length`` and is unchanged). ValueError for a policy without an RNN."""
-    if rnn_horizon_of(ckpt) is None:
-        raise ValueError(f"a {ckpt.get('algo_name', 'policy')} checkpoint without an RNN has no rnn horizon to set")
     config = json.loads(ckpt["config"])
+    if config_rnn_horizon(config) is None:
+        raise ValueError(f"a {ckpt.get('algo_name', 'policy')} checkpoint without an RNN has no rnn horizon to set")
     config["algo"]["rnn"]["horizon"] = int(horizon)
     return {**ckpt, "config": json.dumps(config, indent=4)}

@@ -19,7 +19,6 @@ from veragmil_suite.learning.observation_sets import with_observation_set
 from veragmil_suite.learning.training_resume import comparable_config, training_seconds
 from veragmil_suite.study.logged_run import TRAINING_PROGRESS, LogProgress, console, run_logged
 from veragmil_suite.study.settings import ROBOMIMIC_TORCH_THREADS, StageError
-from veragmil_suite.utils.asset_paths import config_path
 from veragmil_suite.utils.distributed import Resources, cluster_resources
 
 
@@ -44,8 +43,7 @@ def training_config(
     """
     if algo not in ALGORITHMS:
         raise ValueError(f"unknown algorithm {algo!r}; accepted: {sorted(ALGORITHMS)}")
-    with open(config_path(ALGORITHMS[algo].config)) as f:
-        config = json.load(f)
+    config = ALGORITHMS[algo].stock_config()
     experiment = config["experiment"]
     experiment.update(name=name, epoch_every_n_steps=steps_per_epoch, validate=False, render_video=False)
     experiment["rollout"]["enabled"] = False
