@@ -109,3 +109,36 @@ def test_a_file_that_is_not_an_evaluation_exits_2_in_one_line_and_writes_nothing
     err = capsys.readouterr().err
     assert err.startswith("veragmil-pool-results: ") and str(source) in err and len(err.splitlines()) == 1
     assert not out.exists()
+
+
+def test_two_recipes_are_compared_seed_by_seed_on_the_same_bowls_with_the_exact_sign_test(tmp_path, capsys):
+    # per food, BC seed 1 wins episode 0 and BCQ seed 1 episodes 0-2; BC seed 2 wins 0-1 and BCQ seed 2 all four
+    wins = {"expert BC seed 1": 1, "expert BC seed 2": 2, "expert BCQ seed 1": 3, "expert BCQ seed 2": 4}
+    source = _evaluation(tmp_path / "old.json", wins)
+    out = tmp_path / "pooled"
+    agents = [a for name in wins for a in ("--agent", f"{source}:{name}")]
+    paired = ["--paired", "expert BC", "expert BCQ", "--paired", "expert BCQ seed 2", "expert BC seed 1"]
+    assert main([str(out), *agents, *paired]) == 0
+    lines = (out / "paired.md").read_text().splitlines()
+    assert lines[-1] in capsys.readouterr().out
+    # 2 seeds x 2 foods x 4 bowls: BCQ wins alone on 2 bowls a seed and food, BC never does; p = 2 / 2^8
+    assert "| expert BC | expert BCQ | seen (training) | 16 | 6 | 14 | 8 | 0 | 0.008 |" in lines
+    # agents are paired bowl by bowl whatever their seeds: BC seed 1 wins 1 of 4 a food, BCQ seed 2 all
+    assert "| expert BCQ seed 2 | expert BC seed 1 | overall | 8 | 8 | 2 | 0 | 6 | 0.031 |" in lines
+
+
+@pytest.mark.parametrize(
+    "first, second, said",
+    [
+        ("expert BC", "expert DP", "'expert DP' is neither an agent nor a recipe here"),
+        ("expert BC", "expert BCQ", "no training seed in common (seeds [1] and [2])"),
+    ],
+)
+def test_a_paired_comparison_that_cannot_be_made_exits_2_and_writes_nothing(tmp_path, capsys, first, second, said):
+    source = _evaluation(tmp_path / "old.json", {"expert BC seed 1": 1, "expert BCQ seed 2": 3})
+    out = tmp_path / "pooled"
+    args = [str(out), "--agent", f"{source}:expert BC seed 1", "--agent", f"{source}:expert BCQ seed 2"]
+    assert main([*args, "--paired", first, second]) == 2
+    err = capsys.readouterr().err
+    assert said in err and len(err.splitlines()) == 1
+    assert not out.exists()

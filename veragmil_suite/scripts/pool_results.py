@@ -12,6 +12,12 @@ episodes:
 
 The evaluations must agree on what decides an episode's outcome (foods, episodes, seeds, horizon, robot, success
 hold, env kwargs, package versions); a mismatch names the setting and both values.
+
+--paired FIRST SECOND compares two of the pooled agents, or two recipes seed by seed, episode by episode on the same
+bowls (paired.md: the pairs each wins alone and the exact sign test of those), e.g. a recipe against its variant:
+
+    veragmil-pool-results runs/cut_against_full/eval --agent ... \\
+        --paired "spacemouse BC" "spacemouse BC no-noops"
 """
 
 from __future__ import annotations
@@ -21,7 +27,7 @@ import sys
 from collections import Counter
 from pathlib import Path
 
-from veragmil_suite.evaluation.reporting import pool, write_seed_tables
+from veragmil_suite.evaluation.reporting import paired_comparison, paired_markdown, pool, write_seed_tables
 from veragmil_suite.utils import cli
 from veragmil_suite.utils.cli.handler import UsageError, command
 from veragmil_suite.utils.cli.parser import Parser
@@ -57,6 +63,14 @@ def build_parser() -> Parser:
         metavar="NAME=RESULTS_JSON:AGENT",
         help="an agent of a finished evaluation, under a new name ('<recipe> seed <n>' joins the seed tables)",
     )
+    p.add_argument(
+        "--paired",
+        nargs=2,
+        action="append",
+        default=[],
+        metavar=("FIRST", "SECOND"),
+        help="compare SECOND against FIRST episode by episode (pooled agents, or recipes seed by seed): paired.md",
+    )
     return p
 
 
@@ -64,6 +78,7 @@ def build_parser() -> Parser:
 def main(args: argparse.Namespace) -> int:
     try:
         result, points = pool(args.agent)
+        comparisons = [(a, b, paired_comparison(result, a, b, points)) for a, b in args.paired]
     except ValueError as e:
         raise UsageError(str(e)) from None
     for path in result.write(str(args.output_dir)).values():
@@ -71,6 +86,11 @@ def main(args: argparse.Namespace) -> int:
     if any(n > 1 for n in Counter(p["recipe"] for p in points).values()):
         write_seed_tables(result, points, Path(args.output_dir))
         print(Path(args.output_dir) / "seeds.md")
+    if comparisons:
+        paired = paired_markdown(comparisons)
+        (Path(args.output_dir) / "paired.md").write_text(paired)
+        print(Path(args.output_dir) / "paired.md")
+        print(paired, end="")
     return 0
 
 

@@ -1,9 +1,11 @@
 """Reporting evaluations: the paper's tables, stages and chart of one evaluation (tables), and what compares models
-across checkpoints, training seeds and evaluations (comparisons)."""
+across checkpoints, training seeds, bowls and evaluations (comparisons)."""
 
 from veragmil_suite.evaluation.reporting.comparisons import (
     SHARED_SETTINGS,
     learning_curves,
+    paired_comparison,
+    paired_markdown,
     pool,
     seed_markdown,
     seed_spread,
@@ -23,6 +25,8 @@ __all__ = [
     "EvaluationResult",
     "json_safe",
     "learning_curves",
+    "paired_comparison",
+    "paired_markdown",
     "pool",
     "seed_markdown",
     "seed_spread",

@@ -1,5 +1,6 @@
 """What compares models across one evaluation and across several: learning curves over checkpoints, seed tables over
-training seeds, and pooling the agents of finished evaluations into one, as if one run had scored them all."""
+training seeds, two models episode by episode on the same bowls, and pooling the agents of finished evaluations into
+one, as if one run had scored them all."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from veragmil_suite.evaluation.reporting.tables import (
     SEEN_LABEL,
     UNSEEN_LABEL,
     EvaluationResult,
+    food_groups,
     table_rows,
     wilson_interval,
 )
@@ -160,6 +162,80 @@ def write_seed_tables(result, points: list[dict], out_dir: Path) -> None:
         config=config,
     )
     pooled.write(str(out_dir / "seeds"))
+
+
+def paired_comparison(result: EvaluationResult, first: str, second: str, points: list[dict] = ()) -> list[dict]:
+    """
+    ``second`` against ``first`` episode by episode on the same bowls, per group of foods (seen, unseen, overall):
+    the pairs where only ``second`` succeeds (gained) and where only ``first`` does (lost), and the exact two-sided
+    sign test of those (McNemar's exact test). Each bowl's difficulty cancels in a pair, so this separates two models
+    that two overlapping intervals cannot. ``first`` and ``second`` are agents of ``result``, or both recipes of
+    ``points`` (their training seeds paired seed by seed: seed 1 with seed 1, and so on).
+
+    Raises:
+        ValueError: [a name that is neither an agent nor a recipe, names with no training seed or episode in common]
+    """
+    from scipy.stats import binomtest  # heavy: scipy, only when comparing
+
+    def agents_of(name: str) -> dict[int | None, str]:
+        seeds = {p["train_seed"]: p["agent"] for p in points if p["recipe"] == name}
+        if seeds:
+            return seeds
+        if name in result.agents:
+            return {None: name}
+        recipes = sorted({p["recipe"] for p in points})
+        raise ValueError(f"{name!r} is neither an agent nor a recipe here; agents {result.agents}, recipes {recipes}")
+
+    a, b = agents_of(first), agents_of(second)
+    seeds = [s for s in a if s in b]
+    if not seeds:
+        raise ValueError(f"{first!r} and {second!r} have no training seed in common (seeds {list(a)} and {list(b)})")
+    outcome = {(e.agent, e.food, e.episode): e.success for e in result.episodes}
+    pairs = [
+        (food, outcome[(a[s], food, i)], outcome[(b[s], food, i)])
+        for s in seeds
+        for (agent, food, i) in outcome
+        if agent == a[s] and (b[s], food, i) in outcome
+    ]
+    if not pairs:
+        raise ValueError(f"{first!r} and {second!r} have no episode in common")
+    groups = [(g, set(foods)) for g, foods in food_groups(result.foods)] + [("overall", set(result.foods))]
+    rows = []
+    for group, foods in groups:
+        chosen = [(x, y) for food, x, y in pairs if food in foods]
+        if not chosen:
+            continue
+        gained, lost = sum(y and not x for x, y in chosen), sum(x and not y for x, y in chosen)
+        rows.append(
+            dict(
+                group=group,
+                pairs=len(chosen),
+                first=sum(x for x, _ in chosen),
+                second=sum(y for _, y in chosen),
+                gained=gained,
+                lost=lost,
+                p=binomtest(gained, gained + lost).pvalue if gained + lost else 1.0,
+            )
+        )
+    return rows
+
+
+def paired_markdown(comparisons: list[tuple[str, str, list[dict]]]) -> str:
+    """The paired comparisons (first, second, paired_comparison's rows) as one table."""
+    lines = [
+        "Episode by episode on the same bowls (training seeds paired seed by seed): successes of each model, the pairs "
+        "only the second wins (gained) and only the first (lost), and the exact two-sided sign test of those",
+        "",
+        "| first | second | foods | pairs | first wins | second wins | gained | lost | p |",
+        "|---|---|---|---:|---:|---:|---:|---:|---:|",
+    ]
+    for first, second, rows in comparisons:
+        for r in rows:
+            lines.append(
+                f"| {first} | {second} | {r['group']} | {r['pairs']} | {r['first']} | {r['second']} | {r['gained']} "
+                f"| {r['lost']} | {r['p']:.3f} |"
+            )
+    return "\n".join(lines) + "\n"
 
 
 def _groups_by(rows: list[dict], keys: tuple[str, ...]) -> dict[tuple, list[dict]]:

@@ -108,7 +108,8 @@ def _mean(values: list[float]) -> float:
     return float(np.mean(values)) if values else math.nan
 
 
-def _groups(foods: list[str]) -> list[tuple[str, list[str]]]:
+def food_groups(foods: list[str]) -> list[tuple[str, list[str]]]:
+    """``foods`` split into Table II's groups, seen (training) then unseen, each with its label; none left empty."""
     seen = [f for f in foods if f in TRAINING_FOODS]
     unseen = [f for f in foods if f not in TRAINING_FOODS]
     return [(label, group) for label, group in ((SEEN_LABEL, seen), (UNSEEN_LABEL, unseen)) if group]
@@ -122,7 +123,7 @@ def table_rows(summary: dict, agents: list[str], foods: list[str]) -> dict[str, 
     food the same, and their successes and episodes are the group's totals.
     """
     table2, table3 = [], []
-    per_group = _groups(foods)
+    per_group = food_groups(foods)
     for label, group in per_group:
         for food in group:
             s = {a: summary.get((a, food)) for a in agents}
