@@ -31,6 +31,15 @@ add grid_calibrated_spacemouse_bcq "spacemouse BCQ no-load obs"
 add grid_calibrated_spacemouse_bcrnn "spacemouse BC-RNN no-load obs"
 add grid_calibrated_diffusion_9k "expert Diffusion Policy no-load obs"
 add grid_calibrated_diffusion_9k "spacemouse Diffusion Policy no-load obs"
-veragmil-pool-results "$OUT" "${A[@]}"
+# the paper's questions bowl by bowl, seed by seed (paired.md): VR-like against 3D-mouse data for each algorithm and
+# the operators, then the paper's order of algorithms on the expert data
+P=()
+for model in operator "BC no-load obs" "BCQ no-load obs" "BC-RNN no-load obs" "Diffusion Policy no-load obs"; do
+  P+=(--paired "spacemouse $model" "expert $model")
+done
+for model in "BC-RNN no-load obs" "BCQ no-load obs" "Diffusion Policy no-load obs"; do
+  P+=(--paired "expert BC no-load obs" "expert $model")
+done
+veragmil-pool-results "$OUT" "${A[@]}" "${P[@]}"
 python results/grid_calibrated_tables/paper_tables.py "$OUT/seeds/table.csv" > results/grid_calibrated_tables/paper_tables.md
-cp -r "$OUT"/{table.md,table.csv,stages.md,stages.csv,seeds.md,seeds.csv,success.png,seeds} results/grid_calibrated_tables/
+cp -r "$OUT"/{table.md,table.csv,stages.md,stages.csv,seeds.md,seeds.csv,success.png,seeds,paired.md} results/grid_calibrated_tables/
