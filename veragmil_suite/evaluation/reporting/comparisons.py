@@ -231,9 +231,10 @@ def paired_markdown(comparisons: list[tuple[str, str, list[dict]]]) -> str:
     ]
     for first, second, rows in comparisons:
         for r in rows:
+            p = f"{r['p']:.3f}" if r["p"] >= 0.001 else "< 0.001"
             lines.append(
                 f"| {first} | {second} | {r['group']} | {r['pairs']} | {r['first']} | {r['second']} | {r['gained']} "
-                f"| {r['lost']} | {r['p']:.3f} |"
+                f"| {r['lost']} | {p} |"
             )
     return "\n".join(lines) + "\n"
 
