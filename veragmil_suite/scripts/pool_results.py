@@ -65,6 +65,7 @@ def build_parser() -> Parser:
     )
     p.add_argument(
         "--paired",
+        type=cli.Text("an agent or recipe of the pooled evaluation"),
         nargs=2,
         action="append",
         default=[],
