@@ -6,8 +6,9 @@ Run: python results/grid_calibrated_bcrnn_rnn_horizon/heldout/paired.py
 """
 
 import csv
-from math import comb
 from pathlib import Path
+
+from scipy.stats import binomtest
 
 HERE = Path(__file__).parent
 SEEN = {"rice", "buckwheat", "barley", "pasta"}
@@ -23,8 +24,7 @@ def successes(path: Path, agent: str | None = None) -> dict[tuple[str, str], boo
 
 
 def sign_test(gained: int, lost: int) -> float:
-    n = gained + lost
-    return min(1.0, 2 * sum(comb(n, i) for i in range(min(gained, lost) + 1)) / 2**n) if n else 1.0
+    return binomtest(gained, gained + lost).pvalue if gained + lost else 1.0
 
 
 def compare(pairs: list[tuple[dict, dict]], label: str) -> None:
