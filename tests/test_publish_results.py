@@ -34,6 +34,7 @@ def test_run_md_lists_only_the_pieces_behind_its_models(tmp_path):
         "train expert-dart_bcq_30demos_50000steps": 700.0,
         "train spacemouse_bcq_30demos_50000steps": 701.0,
         "evaluate": 599.8,
+        "evaluate (seeds 2-3)": 712.9,  # a pooled study's second evaluation
     }
     dest = tmp_path / "results" / "four_seeds"
     written = publish(_study(tmp_path, agents, timings), dest, "veragmil-study --output-dir x")
@@ -46,6 +47,7 @@ def test_run_md_lists_only_the_pieces_behind_its_models(tmp_path):
         "train expert_bc_30demos_50000steps_seed4",
         "train expert-dart_bcq_30demos_50000steps",
         "evaluate",
+        "evaluate (seeds 2-3)",
     ]
     assert "veragmil-study --output-dir x" in run_md and "mujoco 3.8.1" in run_md
 

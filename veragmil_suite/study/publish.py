@@ -35,14 +35,15 @@ EVAL_FILES = (
 def own_timings(timings: dict[str, float], agents: dict[str, str]) -> dict[str, float]:
     """The pieces behind ``agents``: their training runs, the recording of each dataset they trained on, and the
     evaluation. A study's timings.json keeps every piece its output directory ever ran, most of them another
-    evaluation's."""
+    evaluation's. A pooled study's timings (veragmil-pool-results of several) name each evaluation it joins
+    ("evaluate (seeds 2-3)")."""
     # a checkpoint lies at <runs>/<run name>/<timestamp>/models/<file>; an operator ("expert:expert") is no path
     runs = {Path(spec).parents[2].name for spec in agents.values() if Path(spec).suffix == ".pth"}
     kept = {}
     for key, seconds in timings.items():
         kind, _, name = key.partition(" ")
         if (
-            key == "evaluate"
+            kind == "evaluate"
             or (kind == "train" and name in runs)
             or (kind == "record" and any(run.startswith(f"{name}_") for run in runs))
         ):
