@@ -59,11 +59,6 @@ class OperatorProfile:
             the operator's own for the state reached: noise injection (DART), so the data shows how to recover from
             the small errors a learned policy makes. 0: the executed action is the recorded one.
         injected_noise_time_s: correlation time of the injected noise (s).
-        align_tol_rad: the approach counts as reached only once the spoon's attitude is within this angle (rad) of
-            the pre-scoop attitude (0: within the phase's own tolerance, scaled by waypoint_tol_scale). The arm's
-            initial joint noise tilts the spoon's start by up to 6 degrees; an operator who squares the spoon up
-            before dipping shows the policy the turn back, one who does not shows an off tilt only mid-scoop, where
-            a cloned policy learns to read it as the scoop's turn (results/grid_calibrated_spacemouse_aligned/).
     """
 
     name: str
@@ -83,7 +78,6 @@ class OperatorProfile:
     let_go_tol_m: float = 0.0
     injected_noise: float = 0.0
     injected_noise_time_s: float = 0.3
-    align_tol_rad: float = 0.0
 
 
 PROFILES: Registry[OperatorProfile] = Registry("operator profile", OperatorProfile)
@@ -145,12 +139,6 @@ def spacemouse() -> OperatorProfile:
         phase_time_scale=1.5,
         let_go_tol_m=0.01,
     )
-
-
-@register_profile
-def spacemouse_aligned() -> OperatorProfile:
-    """The 3D-mouse operator squaring the spoon up to the pre-scoop attitude, within 2 degrees, before dipping."""
-    return replace(spacemouse(), name="spacemouse-aligned", align_tol_rad=np.deg2rad(2.0))
 
 
 @dataclass(frozen=True)
@@ -305,11 +293,7 @@ class ScriptedScooper:
         pos_err = target_pos - eef_pos
         rot_err = self._rotation_error(target_rot, eef_rot)
         tol = self.profile.waypoint_tol_scale
-        rot_tol = tol * phase.rot_tol
-        if phase.name == "approach" and self.profile.align_tol_rad:
-            rot_tol = self.profile.align_tol_rad
-        pos_close = np.linalg.norm(pos_err) <= tol * phase.pos_tol
-        reached = pos_close and np.linalg.norm(rot_err) <= rot_tol
+        reached = np.linalg.norm(pos_err) <= tol * phase.pos_tol and np.linalg.norm(rot_err) <= tol * phase.rot_tol
         timed_out = self.phase_steps * self.dt >= phase.max_time_s * self.profile.phase_time_scale
         if phase.name != "hold" and (reached or timed_out):
             self.phase_index += 1
@@ -338,18 +322,10 @@ class ScriptedScooper:
         base_rot = self._controller_frame()
         cmd = _to_frame(base_rot, cmd)
         err = _to_frame(base_rot, np.concatenate([pos_err, rot_err]))
-        # in place above the bowl (no drift to correct), a one-axis operator squares the spoon up before anything else
-        aligning = self.profile.one_axis and phase.name == "approach" and self.profile.align_tol_rad and pos_close
-        if aligning:
-            err[:3] = 0.0
-        drift = 0.0 if aligning else float(np.linalg.norm(pos_err))
-        mask = self._one_axis(err, drift) if self.profile.one_axis else np.ones(6)
+        mask = self._one_axis(err, float(np.linalg.norm(pos_err))) if self.profile.one_axis else np.ones(6)
         # velocity -> the goal offset that OSC turns into that velocity
         action = mask * cmd * self.speed_to_offset / self.action_scale
         if self.profile.input_levels:
-            if aligning:  # a deliberate turn: at least the input's first level, never lost in its dead band
-                step = QUANTIZE_FULL_SCALE / self.profile.input_levels
-                action = np.where(action != 0.0, np.sign(action) * np.maximum(np.abs(action), step), 0.0)
             action = self._quantize(action)
         if self.profile.release_prob and self.rng.random() < self.profile.release_prob:
             action = np.zeros(6)
