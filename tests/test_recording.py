@@ -139,6 +139,25 @@ def test_recorded_demo_replays_exactly_from_its_actions(recorded):
     env.close()
 
 
+def test_a_recording_starts_where_the_reset_put_the_arm(tmp_path):
+    """A recording restarts the env from its own state (so that playback reproduces it); the restarted arm holds
+    the pose the reset's joint noise drew, as a plain reset's does, instead of being pulled toward the noise-free
+    start pose in its first step (results/start_mismatch/: 2-5 cm and up to 5 degrees)."""
+    held = {}
+    for restart in (False, True):
+        env = make_env(tiny_env_kwargs(cameras=()), seed=4)
+        obs = env.reset()
+        if restart:
+            obs, _ = robomimic_obs.restart_from_current_state(env)
+        start = obs["robot0_eef_pos"].copy()
+        for _ in range(3):
+            obs, _, _, _ = env.step(np.zeros(6))
+        held[restart] = obs["robot0_eef_pos"]
+        assert np.linalg.norm(held[restart] - start) < 5e-4, (restart, held[restart] - start)
+        env.close()
+    np.testing.assert_allclose(held[True], held[False], atol=5e-4)
+
+
 def test_append_continues_numbering_and_drops_an_interrupted_write(tmp_path):
     path = tmp_path / "append.hdf5"
     record_file(path, episodes=1, steps=4)

@@ -504,3 +504,20 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
         obs = super().reset()
         self._badqacc_seen = instability_warnings(self.sim.data)
         return obs
+
+    def hold_restored_pose(self) -> None:
+        """
+        Aims the robots' controllers at the pose of the state just set, as a reset aims them at the pose it drew.
+
+        A state is restored (robomimic's ``reset_to``, a recording's restart) by a deterministic reset, which loads
+        the controllers at the noise-free start pose, and then ``sim.set_state``: without this the controllers keep
+        that pose as their reference, and the first step pulls the arm 2-5 cm and a few degrees from the restored
+        pose toward it (results/start_mismatch/), so a recorded or replayed episode would not start where it was set.
+        """
+        self.sim.forward()
+        for robot in self.robots:
+            controller = robot.composite_controller
+            for part in controller.part_controllers.values():
+                part.update_initial_joints(self.sim.data.qpos[part.qpos_index])
+            controller.update_state()
+            controller.reset()
