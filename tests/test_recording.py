@@ -142,7 +142,7 @@ def test_recorded_demo_replays_exactly_from_its_actions(recorded):
 def test_a_recording_starts_where_the_reset_put_the_arm(tmp_path):
     """A recording restarts the env from its own state (so that playback reproduces it); the restarted arm holds
     the pose the reset's joint noise drew, as a plain reset's does, instead of being pulled toward the noise-free
-    start pose in its first step (results/start_mismatch/: 2-5 cm and up to 5 degrees)."""
+    start pose in its first step (results/start_mismatch/: 3 cm and 4 degrees on the farthest grid start)."""
     held = {}
     for restart in (False, True):
         env = make_env(tiny_env_kwargs(cameras=()), seed=4)

@@ -511,7 +511,7 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
 
         A state is restored (robomimic's ``reset_to``, a recording's restart) by a deterministic reset, which loads
         the controllers at the noise-free start pose, and then ``sim.set_state``: without this the controllers keep
-        that pose as their reference, and the first step pulls the arm 2-5 cm and a few degrees from the restored
+        that pose as their reference, and the first step pulls the arm up to 3 cm and 4 degrees from the restored
         pose toward it (results/start_mismatch/), so a recorded or replayed episode would not start where it was set.
         """
         self.sim.forward()
