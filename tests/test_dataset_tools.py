@@ -135,6 +135,11 @@ def test_render_obs_reproduces_the_recording_and_renders_other_cameras(files, tm
                 np.testing.assert_array_equal(
                     b[f"data/{name}/next_obs/{key}"][:-1], a[f"data/{name}/next_obs/{key}"][:-1]
                 )
+                # the last next_obs is simulated again, one step from the last state with the controllers aimed at
+                # it: round-off (the solver's warm start is not in a state), not the arm pulled elsewhere
+                # (before: 144 pixels off by up to 128 levels); images to a level, depth to 1e-5
+                last = [f[f"data/{name}/next_obs/{key}"][-1].astype(float) for f in (b, a)]
+                np.testing.assert_allclose(*last, rtol=0, atol=1.0 if key == "overhead_image" else 1e-5)
             for key in ("states", "actions", "obs/robot0_eef_pos", "obs/object"):
                 np.testing.assert_array_equal(b[f"data/{name}/{key}"][()], a[f"data/{name}/{key}"][()])
 

@@ -234,7 +234,7 @@ def _render_images(env, states: np.ndarray, actions: np.ndarray) -> dict:
         env.sim.set_state_from_flattened(state)
         frames.append(_camera_observations(env))
     env.sim.set_state_from_flattened(states[-1])
-    env.sim.forward()
+    env.hold_restored_pose(episode_start=False)  # the step starts here, not where the controllers last looked
     env.step(actions[-1])
     last = _camera_observations(env)
     keys = frames[0].keys()

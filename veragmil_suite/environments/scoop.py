@@ -505,7 +505,7 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
         self._badqacc_seen = instability_warnings(self.sim.data)
         return obs
 
-    def hold_restored_pose(self) -> None:
+    def hold_restored_pose(self, episode_start: bool = True) -> None:
         """
         Aims the robots' controllers at the pose of the state just set, as a reset aims them at the pose it drew.
 
@@ -513,11 +513,18 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
         the controllers at the noise-free start pose, and then ``sim.set_state``: without this the controllers keep
         that pose as their reference, and the first step pulls the arm up to 3 cm and 4 degrees from the restored
         pose toward it (results/start_mismatch/), so a recorded or replayed episode would not start where it was set.
+
+        Args:
+            episode_start (bool): the state starts an episode, and the arm's posture (OSC's nullspace target) is its
+                joints; False: a state within an episode, whose controllers keep the posture of its start
         """
         self.sim.forward()
         for robot in self.robots:
             controller = robot.composite_controller
             for part in controller.part_controllers.values():
-                part.update_initial_joints(self.sim.data.qpos[part.qpos_index])
+                if episode_start:
+                    part.update_initial_joints(self.sim.data.qpos[part.qpos_index])
+                else:
+                    part.update(force=True)
             controller.update_state()
             controller.reset()
