@@ -45,6 +45,7 @@ def zero_action_start(seed: int, restart: str = "", steps: int = 8):
         env.sim.reset()
         env.sim.set_state_from_flattened(state)
         env.sim.forward()
+        env._restored_start = False  # as before 9f84426: no ScoopGranular.hold_restored_pose
         obs = robomimic_obs.observe(env)
     errors, start = [attitude_error_deg(obs["robot0_eef_quat_site"])], obs["robot0_eef_pos"].copy()
     for _ in range(steps):

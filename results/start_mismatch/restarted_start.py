@@ -26,7 +26,8 @@ def restarted_checkpoint_env(task):
     env.reset_from_xml_string(env.edit_model_xml(robomimic_obs.model_xml(env)))
     env.sim.reset()
     env.sim.set_state_from_flattened(state)
-    env.sim.forward()  # and no ScoopGranular.hold_restored_pose: the controllers keep the noise-free pose
+    env.sim.forward()
+    env._restored_start = False  # no ScoopGranular.hold_restored_pose: the controllers keep the noise-free pose
     return env, step.__self__.get_observation(), act, step
 
 

@@ -229,6 +229,9 @@ def _camera_observations(env) -> dict:
 
 
 def _render_images(env, states: np.ndarray, actions: np.ndarray) -> dict:
+    # the controllers as the recording had them: at its first state's posture (the last step is simulated again)
+    env.sim.set_state_from_flattened(states[0])
+    env.hold_restored_pose()
     frames = []
     for state in states:
         env.sim.set_state_from_flattened(state)

@@ -259,6 +259,7 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
         self._metrics = None
         self._success_time = None
         self._physics_error = ""
+        self._restored_start = False  # the next step follows a deterministic reset: it holds the restored pose
 
         if controller_configs is None:
             controller_configs = load_scoop_controller_config("OSC_POSE", robot=robot_name)
@@ -390,8 +391,11 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
         self._metrics_time = None
         self._success_time = None
         self._physics_error = ""
+        # a saved state is loaded next (reset_to, reset_from_xml_string): no bowl to place or pile to settle, and the
+        # first step holds the pose of that state (hold_restored_pose)
+        self._restored_start = self.deterministic_reset
         if self.deterministic_reset:
-            return  # a saved state is loaded next (reset_to, reset_from_xml_string): no bowl to place or pile to settle
+            return
 
         # Place the bowl and a settled pile (settled once, then moved rigidly: still settled)
         pile = settle(self.bowl, self.grain_pile, self.solver_options, float(self.sim.model.opt.timestep))
@@ -426,6 +430,8 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
         robosuite's step, except that an action with NaN or inf is not executed: it ends the episode with
         info["physics_error"] naming it, as a physics blow-up does (OSC turned it into a limp, falling arm).
         """
+        if self._restored_start:
+            self.hold_restored_pose()
         values = np.asarray(action, dtype=float)
         if np.isfinite(values).all() or self.done:
             return super().step(action)
@@ -509,15 +515,17 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
         """
         Aims the robots' controllers at the pose of the state just set, as a reset aims them at the pose it drew.
 
-        A state is restored (robomimic's ``reset_to``, a recording's restart) by a deterministic reset, which loads
-        the controllers at the noise-free start pose, and then ``sim.set_state``: without this the controllers keep
-        that pose as their reference, and the first step pulls the arm up to 3 cm and 4 degrees from the restored
-        pose toward it (results/start_mismatch/), so a recorded or replayed episode would not start where it was set.
+        A state is restored (robomimic's ``reset_to``, robosuite's playback, a recording's restart) by a deterministic
+        reset, which loads the controllers at the noise-free start pose, and then ``sim.set_state``: without this the
+        controllers keep that pose as their reference, and the first step pulls the arm up to 3 cm and 4 degrees from
+        the restored pose toward it (results/start_mismatch/), so a recorded or replayed episode would not start where
+        it was set. The first step after a deterministic reset calls it, whichever tool set the state.
 
         Args:
             episode_start (bool): the state starts an episode, and the arm's posture (OSC's nullspace target) is its
                 joints; False: a state within an episode, whose controllers keep the posture of its start
         """
+        self._restored_start = False
         self.sim.forward()
         for robot in self.robots:
             controller = robot.composite_controller

@@ -140,17 +140,13 @@ class EnvRobosuite15(EnvRobosuite):
         return super().reset()
 
     def reset_to(self, state):
-        """Resets to a saved state; its own reset stays with the current variant (the state is its episode's), and
-        the controllers aim at the state's pose (ScoopGranular.hold_restored_pose), as a recording's start does."""
+        """Resets to a saved state; its own reset stays with the current variant (the state is its episode's)."""
         holding = self._holding_variant
         self._holding_variant = True
         try:
-            observation = super().reset_to(state)
+            return super().reset_to(state)
         finally:
             self._holding_variant = holding
-        if "states" in state:
-            self.env.hold_restored_pose()
-        return observation
 
     def step(self, action):
         """Steps the environment; done is the environment's own termination (the horizon is the caller's)."""

@@ -109,12 +109,12 @@ def model_xml(env) -> str:
 
 
 def reset_to(env, model_xml: str, state: np.ndarray) -> None:
-    """robomimic's ``reset_to({"model": xml, "states": state})`` for a robosuite env: reload the XML, set the state,
-    and aim the controllers at it (ScoopGranular.hold_restored_pose)."""
+    """robomimic's ``reset_to({"model": xml, "states": state})`` for a robosuite env: reload the XML, set the state
+    (whose pose the first step holds: ScoopGranular.hold_restored_pose)."""
     env.reset_from_xml_string(env.edit_model_xml(model_xml))
     env.sim.reset()
     env.sim.set_state_from_flattened(np.asarray(state))
-    env.hold_restored_pose()
+    env.sim.forward()
 
 
 def reset_to_demo(env, model_xml: str, state: np.ndarray) -> dict:
