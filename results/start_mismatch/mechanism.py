@@ -15,6 +15,7 @@ import h5py
 import numpy as np
 import robosuite
 import robosuite.utils.transform_utils as T
+from restarted_start import restart_as_before  # this folder's script: the restart as it was
 
 import veragmil_suite  # noqa: F401  (registers ScoopGranular)
 from veragmil_suite.environments.start_pose import PRE_SCOOP_EEF_ROT
@@ -40,12 +41,7 @@ def zero_action_start(seed: int, restart: str = "", steps: int = 8):
     if restart == "now":
         obs, _ = robomimic_obs.restart_from_current_state(env)
     elif restart == "before":
-        state = env.sim.get_state().flatten()
-        env.reset_from_xml_string(env.edit_model_xml(robomimic_obs.model_xml(env)))
-        env.sim.reset()
-        env.sim.set_state_from_flattened(state)
-        env.sim.forward()
-        env._restored_start = False  # as before 9f84426: no ScoopGranular.hold_restored_pose
+        restart_as_before(env)
         obs = robomimic_obs.observe(env)
     errors, start = [attitude_error_deg(obs["robot0_eef_quat_site"])], obs["robot0_eef_pos"].copy()
     for _ in range(steps):

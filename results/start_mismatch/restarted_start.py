@@ -20,14 +20,20 @@ FOODS = ("rice", "buckwheat", "barley", "pasta", "peas", "beans", "flakes")
 plain_checkpoint_env = agents._checkpoint_env
 
 
-def restarted_checkpoint_env(task):
-    env, _, act, step = plain_checkpoint_env(task)
+def restart_as_before(env) -> None:
+    """The recorder's restart as it was before 9f84426: the model reloaded by a deterministic reset, the state set
+    back, and no ScoopGranular.hold_restored_pose: the controllers keep the noise-free pose."""
     state = env.sim.get_state().flatten()
     env.reset_from_xml_string(env.edit_model_xml(robomimic_obs.model_xml(env)))
     env.sim.reset()
     env.sim.set_state_from_flattened(state)
     env.sim.forward()
-    env._restored_start = False  # no ScoopGranular.hold_restored_pose: the controllers keep the noise-free pose
+    env._restored_start = False
+
+
+def restarted_checkpoint_env(task):
+    env, _, act, step = plain_checkpoint_env(task)
+    restart_as_before(env)
     return env, step.__self__.get_observation(), act, step
 
 
