@@ -8,6 +8,7 @@ import pytest
 from veragmil_suite.evaluation.agents import EpisodeRecord
 from veragmil_suite.evaluation.reporting import pool
 from veragmil_suite.scripts.pool_results import main
+from veragmil_suite.study.publish import publish
 
 FOODS = ["rice", "pasta"]
 
@@ -61,6 +62,32 @@ def test_agents_of_two_evaluations_pool_into_one_with_seed_tables(tmp_path):
     assert pooled["rice"]["agent"] == "expert BC" and pooled["rice"]["successes"] == 7
     assert pooled["rice"]["episodes"] == 12
     assert "| expert BC | 1, 2, 4 |" in (out / "seeds.md").read_text()
+
+
+def test_the_pool_times_the_pieces_behind_its_agents_from_each_source_study(tmp_path):
+    """Each source study's recording, the trainings of the agents taken from it and its evaluation, named by study
+    where two studies time a piece differently; veragmil-publish-results lists them in RUN.md."""
+    first = _evaluation(tmp_path / "s1" / "eval" / "results.json", {"expert BC": 4, "expert BCQ": 1})
+    later = _evaluation(tmp_path / "s23" / "eval" / "results.json", {"expert BC seed 2": 3})
+    for study, timings in [
+        ("s1", {"record expert": 500.0, "train expert_BC": 800.0, "train expert_BCQ": 900.0, "evaluate": 400.0}),
+        ("s23", {"record expert": 510.0, "train expert_BC_seed_2": 790.0, "evaluate": 380.0}),
+    ]:
+        (tmp_path / study / "timings.json").write_text(json.dumps(timings))
+    out = tmp_path / "pooled" / "eval"
+    assert (
+        main([str(out), "--agent", f"expert BC seed 1={first}:expert BC", "--agent", f"{later}:expert BC seed 2"]) == 0
+    )
+    assert json.loads((out / "timings.json").read_text()) == {
+        f"record expert ({tmp_path / 's1'})": 500.0,
+        "train expert_BC": 800.0,
+        f"evaluate ({tmp_path / 's1'})": 400.0,
+        f"record expert ({tmp_path / 's23'})": 510.0,
+        "train expert_BC_seed_2": 790.0,
+        f"evaluate ({tmp_path / 's23'})": 380.0,
+    }
+    publish(tmp_path / "pooled", tmp_path / "published", "pool.sh")
+    assert f"| evaluate ({tmp_path / 's23'}) | 380.0 |" in (tmp_path / "published" / "RUN.md").read_text()
 
 
 def test_an_agents_rnn_horizon_comes_with_it_into_the_pool_and_its_seed_tables(tmp_path):

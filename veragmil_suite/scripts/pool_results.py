@@ -11,7 +11,9 @@ episodes:
         --agent "expert BC seed 4=runs/grid_bc4/eval/results.json:expert BC"
 
 The evaluations must agree on what decides an episode's outcome (foods, episodes, seeds, horizon, robot, success
-hold, env kwargs, package versions); a mismatch names the setting and both values.
+hold, env kwargs, package versions); a mismatch names the setting and both values. The wall times of the pieces
+behind the pooled agents (their recordings, trainings and evaluations, from each source study's timings.json) land in
+<output-dir>/timings.json, which veragmil-publish-results reads.
 
 --paired FIRST SECOND compares two of the pooled agents, or two recipes seed by seed, episode by episode on the same
 bowls (paired.md: the pairs each wins alone and the exact sign test of those), e.g. a recipe against its variant:
@@ -23,11 +25,13 @@ bowls (paired.md: the pairs each wins alone and the exact sign test of those), e
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from collections import Counter
 from pathlib import Path
 
 from veragmil_suite.evaluation.reporting import paired_comparison, paired_markdown, pool, write_seed_tables
+from veragmil_suite.study.publish import pooled_timings
 from veragmil_suite.utils import cli
 from veragmil_suite.utils.cli.handler import UsageError, command
 from veragmil_suite.utils.cli.parser import Parser
@@ -84,6 +88,10 @@ def main(args: argparse.Namespace) -> int:
         raise UsageError(str(e)) from None
     for path in result.write(str(args.output_dir)).values():
         print(path)
+    timings = pooled_timings(result.config)
+    if timings:
+        (Path(args.output_dir) / "timings.json").write_text(json.dumps(timings, indent=2) + "\n")
+        print(Path(args.output_dir) / "timings.json")
     if any(n > 1 for n in Counter(p["recipe"] for p in points).values()):
         write_seed_tables(result, points, Path(args.output_dir))
         print(Path(args.output_dir) / "seeds.md")

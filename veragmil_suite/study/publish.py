@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from collections import Counter
 from pathlib import Path
 
 from veragmil_suite.utils.host import host
@@ -51,6 +52,36 @@ def own_timings(timings: dict[str, float], agents: dict[str, str]) -> dict[str, 
     return kept
 
 
+def study_timings(results_json: Path) -> dict[str, float]:
+    """The wall times of the run that wrote ``results_json``: the timings.json beside it (a pooled evaluation's) or
+    in the study folder above its eval/ (a study's); empty when neither is there (a published results/ folder)."""
+    folders = [results_json.parent] + ([results_json.parent.parent] if results_json.parent.name == "eval" else [])
+    for folder in folders:
+        if (folder / "timings.json").is_file():
+            return json.loads((folder / "timings.json").read_text())
+    return {}
+
+
+def pooled_timings(config: dict) -> dict[str, float]:
+    """
+    The pieces behind a pooled evaluation's agents (its config's ``pooled_from`` and ``agents``): each source's own
+    timings for the agents taken from it. Each source's evaluation, and a piece two sources time differently, carry
+    the source's folder ("evaluate (runs/bc_seeds_2_3)"), so the pool's timings.json says which run took how long.
+    """
+    by_source: dict[Path, dict[str, str]] = {}
+    for name, origin in config.get("pooled_from", {}).items():
+        by_source.setdefault(Path(origin.rpartition(":")[0]), {})[name] = config["agents"][name]
+    pieces = {source: own_timings(study_timings(source), agents) for source, agents in by_source.items()}
+    values = Counter((key, seconds) for piece in pieces.values() for key, seconds in piece.items())
+    keys = Counter(key for key, _ in values)
+    merged: dict[str, float] = {}
+    for source, piece in pieces.items():
+        folder = source.parent.parent if source.parent.name == "eval" else source.parent
+        for key, seconds in piece.items():
+            merged[f"{key} ({folder})" if key == "evaluate" or keys[key] > 1 else key] = seconds
+    return merged
+
+
 def publish(study_dir: Path, dest: Path, command: str) -> list[str]:
     """
     Copies the study's eval outputs and timings to ``dest`` and writes RUN.md; returns the files written.
@@ -68,7 +99,7 @@ def publish(study_dir: Path, dest: Path, command: str) -> list[str]:
             (dest / name).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(eval_dir / name, dest / name)
             written.append(name)
-    timings = json.loads((study_dir / "timings.json").read_text()) if (study_dir / "timings.json").is_file() else {}
+    timings = study_timings(eval_dir / "results.json")
     config = json.loads((eval_dir / "results.json").read_text())["config"]
     timings = own_timings(timings, config.get("agents", {}))
     lines = [
