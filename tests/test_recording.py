@@ -197,6 +197,38 @@ def test_a_file_an_earlier_version_wrote_takes_more_demos(tmp_path):
         assert writer.next_index > 0
 
 
+def test_demos_of_the_earlier_start_never_mix_with_new_ones(tmp_path):
+    """A file recorded before demos started where the reset put the arm (no "start" attribute) takes no new demo,
+    joins no merge with new ones, and a study does not resume it; every refusal names the start and the file
+    stays as it was."""
+    from veragmil_suite.data.datasets import merge_datasets
+    from veragmil_suite.data.schema import DEMO_START, EARLIER_START, demo_names, demo_start
+    from veragmil_suite.study.record import StageError, check_recording
+
+    new, old = tmp_path / "new.hdf5", tmp_path / "old.hdf5"
+    for path in (new, old):
+        with synthetic_writer(path) as writer:
+            writer.write(synthetic_episode(steps=5))
+    with h5py.File(new, "r") as f:
+        assert demo_start(f["data"].attrs) == demo_start(f["data/demo_0"].attrs) == DEMO_START
+    with h5py.File(old, "a") as f:  # as a file of before the attribute reads
+        for group in (f["data"], f["data/demo_0"]):
+            del group.attrs["start"]
+    before = old.read_bytes()
+    with pytest.raises(DatasetError, match=f"first step {EARLIER_START} .*write to a new file"):
+        synthetic_writer(old)
+    with pytest.raises(DatasetError, match=f"start otherwise .*first step {EARLIER_START}, not {DEMO_START}"):
+        merge_datasets([new, old], tmp_path / "mixed.hdf5")
+    assert not (tmp_path / "mixed.hdf5").exists() and old.read_bytes() == before
+    with pytest.raises(StageError, match=f"start {EARLIER_START!r} \\(asked: {DEMO_START!r}\\)"):
+        check_recording(old, "pasta", profile="", seed=None, n_grains=12, cameras=("overhead",))
+    merged, again = tmp_path / "two_new.hdf5", tmp_path / "new_again.hdf5"
+    again.write_bytes(new.read_bytes())
+    merge_datasets([new, again], merged)
+    with h5py.File(merged, "r") as f:
+        assert len(demo_names(f)) == 2 and demo_start(f["data"].attrs) == DEMO_START
+
+
 def test_append_refuses_another_setup(tmp_path):
     path = tmp_path / "a.hdf5"
     record_file(path, episodes=1, steps=3)

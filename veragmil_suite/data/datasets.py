@@ -20,6 +20,7 @@ from veragmil_suite.data.schema import (
     DatasetError,
     check_demo,
     demo_names,
+    demo_start,
     env_kwargs_variants,
     incompatible_kwargs,
     interrupted_writes,
@@ -187,6 +188,12 @@ def merge_datasets(inputs: list[str | Path], output: str | Path, valid_ratio: fl
                     differ = incompatible_kwargs(meta["env_kwargs"], first_meta["env_kwargs"])
                     if differ:
                         raise DatasetError(f"{path} was recorded with other {', '.join(differ)} than {inputs[0]}")
+                    if demo_start(data_in.attrs) != demo_start(data_out.attrs):
+                        raise DatasetError(
+                            f"{path}'s demos start otherwise than {inputs[0]}'s (their first step "
+                            f"{demo_start(data_in.attrs)}, not {demo_start(data_out.attrs)}): "
+                            "merge files recorded alike"
+                        )
                 if obs is not None:
                     if first_obs is None:
                         first_obs = obs

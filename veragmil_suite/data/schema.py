@@ -42,6 +42,11 @@ ROBOSUITE_ENV_TYPE = 1  # robomimic's EnvType.ROBOSUITE_TYPE
 # the writer files name (data.attrs["writer"]): a format's name, not a module path, so files of every version append
 WRITER = "veragmil_suite.recording"
 FORMAT_VERSION = 1
+# how each demo's first step starts (the "start" attribute of data and of each demo): where the env's reset put the
+# arm, its controllers aimed there (ScoopGranular.hold_restored_pose), as an evaluated episode starts. Files recorded
+# before 2026-12-01 (9f84426) name none: their first step pulled the arm toward the noise-free start pose.
+DEMO_START = "held where the reset put the arm"
+EARLIER_START = "pulled toward the noise-free start pose"
 DEMO_PREFIX = "demo_"
 # where a file of an in-place writer holds a demo its killed writer never finished: the root group PENDING_GROUP,
 # or a data/ group under _PENDING_PREFIX; removed at the next write or by veragmil-dataset-info --clean
@@ -210,13 +215,21 @@ def check_demo(g: h5py.Group, where: str) -> None:
                 raise DamagedDataset(f"{where}: {group}/{k} has {d.shape[0]} steps, actions {n}")
 
 
+def demo_start(attrs: h5py.AttributeManager | dict) -> str:
+    """How the demos of a file (its data group's attributes) or one demo (its attributes) start: DEMO_START, or
+    EARLIER_START for those recorded before the attribute was written."""
+    return attr_text(attrs.get("start", EARLIER_START))
+
+
 def provenance(device: str, operator: str, food: str, robot: str, **extra) -> dict:
-    """Who and what made the demonstrations: device, operator, food, robot, software versions, date."""
+    """Who and what made the demonstrations: device, operator, food, robot, how each demo starts, software
+    versions, date."""
     out = dict(
         device=device,
         operator=operator,
         food=food,
         robot=robot,
+        start=DEMO_START,
         mujoco_version=mujoco.__version__,
         robosuite_version=robosuite.__version__,
         robomimic_version=_version("robomimic"),

@@ -25,12 +25,14 @@ from veragmil_suite.data import safe_hdf5
 from veragmil_suite.data.recording import Episode
 from veragmil_suite.data.schema import (
     DEMO_PREFIX,
+    DEMO_START,
     FORMAT_VERSION,
     IMAGE_COMPRESSION,
     WRITER,
     DatasetError,
     attr_text,
     demo_names,
+    demo_start,
     incompatible_kwargs,
     open_dataset,
     refresh_summary,
@@ -124,6 +126,11 @@ class DemoWriter:
         if data.attrs.get("writer") != WRITER:
             raise DatasetError(
                 f"{self.path} is a robomimic dataset not written by veragmil_suite: refusing to append to it"
+            )
+        if demo_start(data.attrs) != DEMO_START:
+            raise DatasetError(
+                f"{self.path} holds demos whose first step {demo_start(data.attrs)} (recorded before 2026-12-01); "
+                f"new demos start {DEMO_START}: write to a new file instead"
             )
         theirs = json.loads(data.attrs["env_args"])["env_kwargs"]
         ours = self.env_meta["env_kwargs"]

@@ -13,7 +13,7 @@ import h5py
 
 from veragmil_suite.data.collection import record_scripted, recording_env_kwargs
 from veragmil_suite.data.datasets import drop_noops, merge_datasets
-from veragmil_suite.data.schema import DatasetError, demo_names, open_dataset, seeds_used
+from veragmil_suite.data.schema import DEMO_START, DatasetError, demo_names, demo_start, open_dataset, seeds_used
 from veragmil_suite.data.writer import updated_file
 from veragmil_suite.learning.observation_sets import WRENCH_OBSERVATIONS, needs_wrench
 from veragmil_suite.models.foods import (
@@ -54,6 +54,7 @@ def _recorded(path: Path) -> dict:
             cameras=kwargs.get("camera_names") if kwargs.get("use_camera_obs") else [],
             profile=str(first.get("profile", "")),
             seed=int(first["env_seed"]) if "env_seed" in first else None,
+            start=demo_start(f["data"].attrs),
         )
 
 
@@ -92,6 +93,7 @@ def check_recording(
         seed=seed,
         robot=robot,
         physics=physics,
+        start=DEMO_START,
     )
     differ = {k: (held[k], v) for k, v in wanted.items() if held[k] != v and held["demos"]}
     if wrench and not held["wrench"] and held["demos"]:
