@@ -6,7 +6,7 @@ set -euo pipefail
 export PATH=$PWD/.venv/bin:$PATH
 D=results/grid_mended_expert_bc
 O=results/grid_calibrated_noload/results.json
-M=runs/mended_expert_bc/eval/results.json
+M=results/grid_mended_expert_bc/results.json
 A="expert BC no-load obs seed"
 rm -rf runs/grid_mended_expert_bc
 veragmil-pool-results runs/grid_mended_expert_bc/compare \
@@ -18,3 +18,12 @@ veragmil-pool-results runs/grid_mended_expert_bc/compare \
   --paired "expert operator" "mended start seed 1" --paired "expert operator" "mended start seed 2" \
   --paired "expert operator" "mended start seed 3"
 mkdir -p $D/compare && cp runs/grid_mended_expert_bc/compare/{paired.md,seeds.md,stages.md} $D/compare/
+# the paper's central question on the mended recordings: expert data against the spacemouse data (its pauses cut,
+# ../grid_mended_spacemouse_bc_noops/), BC seed by seed on the same bowls: profiles/paired.md
+S=results/grid_mended_spacemouse_bc_noops/results.json
+B="spacemouse BC no-load obs no-noops seed"
+veragmil-pool-results runs/grid_mended_expert_bc/profiles \
+  --agent "expert BC seed 1=$M:$A 1" --agent "expert BC seed 2=$M:$A 2" --agent "expert BC seed 3=$M:$A 3" \
+  --agent "spacemouse BC seed 1=$S:$B 1" --agent "spacemouse BC seed 2=$S:$B 2" --agent "spacemouse BC seed 3=$S:$B 3" \
+  --paired "spacemouse BC" "expert BC"
+mkdir -p $D/profiles && cp runs/grid_mended_expert_bc/profiles/paired.md $D/profiles/
