@@ -52,11 +52,15 @@ def own_timings(timings: dict[str, float], agents: dict[str, str]) -> dict[str, 
     return kept
 
 
+def _study_folder(results_json: Path) -> Path:
+    """The folder of the run that wrote ``results_json``: a study's, above its eval/; else the file's own."""
+    return results_json.parent.parent if results_json.parent.name == "eval" else results_json.parent
+
+
 def study_timings(results_json: Path) -> dict[str, float]:
     """The wall times of the run that wrote ``results_json``: the timings.json beside it (a pooled evaluation's) or
     in the study folder above its eval/ (a study's); empty when neither is there (a published results/ folder)."""
-    folders = [results_json.parent] + ([results_json.parent.parent] if results_json.parent.name == "eval" else [])
-    for folder in folders:
+    for folder in dict.fromkeys([results_json.parent, _study_folder(results_json)]):
         if (folder / "timings.json").is_file():
             return json.loads((folder / "timings.json").read_text())
     return {}
@@ -72,13 +76,13 @@ def pooled_timings(config: dict) -> dict[str, float]:
     for name, origin in config.get("pooled_from", {}).items():
         by_source.setdefault(Path(origin.rpartition(":")[0]), {})[name] = config["agents"][name]
     pieces = {source: own_timings(study_timings(source), agents) for source, agents in by_source.items()}
-    values = Counter((key, seconds) for piece in pieces.values() for key, seconds in piece.items())
-    keys = Counter(key for key, _ in values)
+    # how many different times each piece has across the sources
+    times = Counter(key for key, _ in {(key, s) for piece in pieces.values() for key, s in piece.items()})
     merged: dict[str, float] = {}
     for source, piece in pieces.items():
-        folder = source.parent.parent if source.parent.name == "eval" else source.parent
         for key, seconds in piece.items():
-            merged[f"{key} ({folder})" if key == "evaluate" or keys[key] > 1 else key] = seconds
+            named = key == "evaluate" or times[key] > 1
+            merged[f"{key} ({_study_folder(source)})" if named else key] = seconds
     return merged
 
 
