@@ -1,12 +1,12 @@
 #!/bin/bash
-# Pairs each seed of the study (runs/mended_sm_bc), bowl by bowl, with the same seed trained on the recording made
+# Pairs each seed of this folder's study (runs/mended_sm_bc), bowl by bowl, with the same seed trained on the recording made
 # before the start mend (../grid_calibrated_spacemouse_bc_noops/): compare/paired.md. Run from the repository root
 # after the study's command (RUN.md).
 set -euo pipefail
 export PATH=$PWD/.venv/bin:$PATH
 D=results/grid_mended_spacemouse_bc_noops
 O=results/grid_calibrated_spacemouse_bc_noops/results.json
-M=runs/mended_sm_bc/eval/results.json
+M=results/grid_mended_spacemouse_bc_noops/results.json
 A="spacemouse BC no-load obs no-noops seed"
 rm -rf runs/grid_mended_spacemouse_bc_noops
 veragmil-pool-results runs/grid_mended_spacemouse_bc_noops/compare \

@@ -1,6 +1,6 @@
 """One episode of a checkpoint traced every 10 control steps: stage, grains in the spoon and spilled, the spoon's
-height above the desired post-scoop position and its distance from it, and the action's norms (translation,
-rotation). Run from the repository root:
+offset from the desired post-scoop position (mm), and the action's norms (translation, rotation). Run from the
+repository root:
 python results/grid_mended_spacemouse_bc/probe/trace.py <checkpoint> <food> <episode>"""
 
 import sys
