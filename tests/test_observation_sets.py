@@ -4,8 +4,10 @@ change."""
 import numpy as np
 import pytest
 import robosuite
+import robosuite.utils.transform_utils as T
 
 import veragmil_suite  # noqa: F401 - registers ScoopGranular
+from veragmil_suite.environments.start_pose import POST_SCOOP_EEF_ROT, rotation_to_post_scoop
 from veragmil_suite.learning import robomimic_obs
 from veragmil_suite.learning.observation_sets import (
     OBJECT_OBSERVABLES,
@@ -56,7 +58,8 @@ def test_a_config_takes_a_sets_low_dim_keys_and_an_unknown_set_is_named():
     out = with_observation_set(config, "no-load")["observation"]["modalities"]["obs"]
     assert out == {"low_dim": list(OBSERVATION_SETS["no-load"]), "rgb": ["overhead_image"]}
     with pytest.raises(
-        ValueError, match=r"unknown observation set 'counts'; accepted: \['no-load', 'object', 'wrench'\]"
+        ValueError,
+        match=r"unknown observation set 'counts'; accepted: \['no-load', 'no-load-rot', 'object', 'wrench'\]",
     ):
         check_observation_set("counts")
 
@@ -84,3 +87,21 @@ def test_the_wrench_set_adds_the_wrist_sensor_which_reads_the_spoons_weight_at_r
     assert weight > 0.5
     assert np.linalg.norm(obs["robot0_eef_force"]) == pytest.approx(weight, rel=0.1)
     felt.close()
+
+
+def test_the_orientation_error_turns_the_spoon_into_the_post_scoop_orientation_and_leaves_object_as_it_was(env):
+    keys = OBSERVATION_SETS["no-load-rot"]
+    assert keys == OBSERVATION_SETS["no-load"] + ("spoon_to_desired_rot",)
+    obs = robomimic_obs.observation(env)
+    turn = obs["spoon_to_desired_rot"]
+    spoon = env.sim.data.site_xmat[env.eef_site_id].reshape(3, 3)
+    applied = T.quat2mat(T.axisangle2quat(turn)) @ spoon
+    np.testing.assert_allclose(applied, POST_SCOOP_EEF_ROT, atol=1e-6)
+    # the start's spoon is the pre-scoop one: 45 degrees about the world's y from the post-scoop one
+    assert np.degrees(np.linalg.norm(turn)) == pytest.approx(45.0, abs=10.0)
+    assert env._observables["spoon_to_desired_rot"].modality != "object"
+    np.testing.assert_array_equal(obs["object"], np.concatenate([obs[k] for k in OBJECT_OBSERVABLES]))
+    # at the pose it is zero, and the angle never exceeds pi (the shorter way round)
+    np.testing.assert_allclose(rotation_to_post_scoop(POST_SCOOP_EEF_ROT), 0.0, atol=1e-9)
+    flipped = T.quat2mat(np.array([0.0, 0.0, 1.0, 0.0])) @ POST_SCOOP_EEF_ROT
+    assert np.linalg.norm(rotation_to_post_scoop(flipped)) == pytest.approx(np.pi, abs=1e-6)

@@ -34,6 +34,8 @@ ROBOT_KEYS = {
     "robot0_eef_quat_site": (4,),
 }
 OBJECT_KEYS = {"desired_pose": (7,), "bowl_pos": (3,), "spoon_to_desired_pos": (3,), "spoon_load": (2,)}
+# the task's observables outside ``object`` (a modality of their own)
+GOAL_KEYS = {"spoon_to_desired_rot": (3,)}
 CAMERA_KEYS = {
     "overhead_image": ((CAMERA_SIZE, CAMERA_SIZE, 3), np.uint8),
     "overhead_depth": ((CAMERA_SIZE, CAMERA_SIZE, 1), np.float32),
@@ -87,8 +89,8 @@ def test_fresh_file_has_robomimics_schema_key_by_key(recorded):
             np.testing.assert_array_equal(g["states"][()], episode.states)
             for group in ("obs", "next_obs"):
                 keys = set(g[group].keys())
-                assert keys == set(ROBOT_KEYS) | set(OBJECT_KEYS) | set(CAMERA_KEYS) | {"object"}
-                for key, shape in {**ROBOT_KEYS, **OBJECT_KEYS}.items():
+                assert keys == set(ROBOT_KEYS) | set(OBJECT_KEYS) | set(GOAL_KEYS) | set(CAMERA_KEYS) | {"object"}
+                for key, shape in {**ROBOT_KEYS, **OBJECT_KEYS, **GOAL_KEYS}.items():
                     assert g[group][key].shape == (STEPS, *shape), key
                 for key, (shape, dtype) in CAMERA_KEYS.items():
                     assert g[group][key].shape == (STEPS, *shape) and g[group][key].dtype == dtype, key

@@ -20,6 +20,14 @@ POST_SCOOP_EEF_ROT = _LEVEL_TURN @ PRE_SCOOP_EEF_ROT
 _PRE_SCOOP_CACHE: dict[tuple, np.ndarray] = {}
 
 
+def rotation_to_post_scoop(eef_rot: np.ndarray) -> np.ndarray:
+    """The rotation that turns a spoon at orientation ``eef_rot`` (3 x 3, the eef site's in the world) into the
+    post-scoop orientation: axis times angle (rad, at most pi), in the world frame, the frame of the OSC's rotation
+    actions, so a policy's turn toward the pose is the same function of it wherever the spoon stands."""
+    quat = T.mat2quat(POST_SCOOP_EEF_ROT @ np.asarray(eef_rot).reshape(3, 3).T)
+    return T.quat2axisangle(quat if quat[3] >= 0 else -quat)
+
+
 class StartPoseMixin:
     """ScoopGranular's start pose, solved once per robot, bowl and table by inverse kinematics (cached)."""
 

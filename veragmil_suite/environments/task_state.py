@@ -8,7 +8,7 @@ import robosuite.utils.transform_utils as T
 from robosuite.utils.observables import Observable, sensor
 
 from veragmil_suite.environments.stages import SCOOP_STAGES
-from veragmil_suite.environments.start_pose import POST_SCOOP_EEF_ROT
+from veragmil_suite.environments.start_pose import POST_SCOOP_EEF_ROT, rotation_to_post_scoop
 from veragmil_suite.models.humanoid import SPOON_ARM
 from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
 
@@ -301,6 +301,16 @@ class TaskStateMixin:
 
             for s in sensors:
                 observables[s.__name__] = Observable(name=s.__name__, sensor=s, sampling_rate=self.control_freq)
+
+            # the orientation twin of spoon_to_desired_pos, in a modality of its own so that ``object`` (which
+            # datasets and checkpoints of the "object" set hold) keeps its layout
+            @sensor(modality="goal")
+            def spoon_to_desired_rot(obs_cache):
+                return rotation_to_post_scoop(self.sim.data.site_xmat[self.eef_site_id])
+
+            observables["spoon_to_desired_rot"] = Observable(
+                name="spoon_to_desired_rot", sensor=spoon_to_desired_rot, sampling_rate=self.control_freq
+            )
 
         return observables
 

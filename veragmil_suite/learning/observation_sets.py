@@ -12,6 +12,9 @@ physical parameters are privileged: no real robot observes them.
 - ``no-load`` (the low-dim configs' keys): what a real robot could have: its end-effector pose (proprioception), the
   desired pose and the bowl's position (a camera finds the bowl) and the spoon's offset from the desired position
   (the same two combined).
+- ``no-load-rot``: ``no-load`` and ``spoon_to_desired_rot``, the turn from the spoon's orientation to the post-scoop
+  one (axis times angle, world frame; modality "goal", outside ``object``): the orientation twin of
+  ``spoon_to_desired_pos``, in the frame of the OSC's rotation actions. Data recorded before it existed lacks it.
 - ``wrench``: ``no-load`` and the wrist force-torque sensor (``robot0_eef_force``, ``robot0_eef_torque``): the spoon's
   weight and its contacts with grains and bowl, the sense a real robot has of what the grain counts say. The sensor
   reads the torques applied in a step, not the state alone: ScoopGranular observes it only with
@@ -31,6 +34,7 @@ NO_LOAD = ("robot0_eef_pos", "robot0_eef_quat", "desired_pose", "bowl_pos", "spo
 OBSERVATION_SETS: dict[str, tuple[str, ...]] = {
     "object": ("robot0_eef_pos", "robot0_eef_quat", "object"),
     "no-load": NO_LOAD,
+    "no-load-rot": NO_LOAD + ("spoon_to_desired_rot",),
     "wrench": NO_LOAD + WRENCH_OBSERVATIONS,
 }
 # the set of the low-dim configs in configs/json (tests/test_configs.py holds them to it): BC scored as well without
