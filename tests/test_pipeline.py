@@ -138,7 +138,8 @@ def test_observation_sets_name_their_runs_and_columns_and_the_object_set_keeps_i
     config = training_config("bc", tmp_path / "d.hdf5", tmp_path / "runs", "x", 1, 1, obs_set="no-load")
     assert config["observation"]["modalities"]["obs"]["low_dim"] == list(OBSERVATION_SETS["no-load"])
     with pytest.raises(
-        ValueError, match=r"unknown observation set 'counts'; accepted: \['no-load', 'object', 'wrench'\]"
+        ValueError,
+        match=r"unknown observation set 'counts'; accepted: \['no-load', 'no-load-rot', 'object', 'wrench'\]",
     ):
         PipelineSettings(**grid, obs_sets=["counts"])
 
