@@ -19,7 +19,7 @@ import robosuite.utils.transform_utils as T
 
 from veragmil_suite.controllers.scoop_config import osc_speed_per_offset
 from veragmil_suite.environments.start_pose import POST_SCOOP_EEF_ROT, PRE_SCOOP_EEF_ROT
-from veragmil_suite.utils.kinematics import align_heading
+from veragmil_suite.utils.kinematics import align_heading, turn_to
 from veragmil_suite.utils.registry import Registry
 
 # While lifting and carrying, the spoon's tip is raised a little past level, as people do, so the load rests against
@@ -349,8 +349,8 @@ class ScriptedScooper:
         """Axis-angle from the spoon's attitude to the target's (world frame); with a free heading, to the target
         turned to the spoon's heading, and nothing about the vertical (the arm cannot hold it)."""
         if not self.free_heading:
-            return T.quat2axisangle(T.mat2quat(target_rot @ eef_rot.T))
-        err = T.quat2axisangle(T.mat2quat(align_heading(target_rot, eef_rot) @ eef_rot.T))
+            return turn_to(target_rot, eef_rot)
+        err = turn_to(align_heading(target_rot, eef_rot), eef_rot)
         err[2] = 0.0
         return err
 

@@ -8,7 +8,7 @@ import robosuite.utils.transform_utils as T
 from veragmil_suite.models.humanoid import (
     SPOON_ARM,
 )
-from veragmil_suite.utils.kinematics import solve_pose_ik
+from veragmil_suite.utils.kinematics import solve_pose_ik, turn_to
 
 # Spoon orientations in the world, as rotation matrices of the flange (eef) frame. Pre-scoop: the tool points
 # straight down, so the bent spoon's tip points down at 45 degrees along +x (away from the robot), its bowl
@@ -21,11 +21,10 @@ _PRE_SCOOP_CACHE: dict[tuple, np.ndarray] = {}
 
 
 def rotation_to_post_scoop(eef_rot: np.ndarray) -> np.ndarray:
-    """The rotation that turns a spoon at orientation ``eef_rot`` (3 x 3, the eef site's in the world) into the
-    post-scoop orientation: axis times angle (rad, at most pi), in the world frame, the frame of the OSC's rotation
-    actions, so a policy's turn toward the pose is the same function of it wherever the spoon stands."""
-    quat = T.mat2quat(POST_SCOOP_EEF_ROT @ np.asarray(eef_rot).reshape(3, 3).T)
-    return T.quat2axisangle(quat if quat[3] >= 0 else -quat)
+    """The turn (axis times angle, world frame, rad, at most pi) from a spoon at orientation ``eef_rot`` (the eef
+    site's in the world, 3 x 3 or flat) to the post-scoop orientation, so a policy's turn toward the pose is the same
+    function of it wherever the spoon stands."""
+    return turn_to(POST_SCOOP_EEF_ROT, np.asarray(eef_rot).reshape(3, 3))
 
 
 class StartPoseMixin:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import mujoco
 import numpy as np
+import robosuite.utils.transform_utils as T
 
 IK_MAX_ITERATIONS = 500
 IK_DAMPING = 1e-3
@@ -21,6 +22,12 @@ def align_heading(target_rot: np.ndarray, current_rot: np.ndarray) -> np.ndarray
     psi = np.arctan2(b[1, 0] - b[0, 1], b[0, 0] + b[1, 1])
     c, s = np.cos(psi), np.sin(psi)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ target_rot
+
+
+def turn_to(target_rot: np.ndarray, current_rot: np.ndarray) -> np.ndarray:
+    """Axis times angle (world frame, rad) that turns ``current_rot`` into ``target_rot``: the form of the OSC's
+    rotation actions. The angle is at most pi: robosuite's mat2quat keeps the quaternion's w non-negative."""
+    return T.quat2axisangle(T.mat2quat(np.asarray(target_rot) @ np.asarray(current_rot).T))
 
 
 def solve_pose_ik(

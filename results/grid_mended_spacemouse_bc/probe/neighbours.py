@@ -19,16 +19,25 @@ with h5py.File(data, "r") as f:
     states = np.concatenate([np.concatenate(r, 1) for r in rows])
     actions = np.concatenate([g["actions"][:] for g in demos])
 scale = states.std(0) + 1e-6
-task = agents.EpisodeTask(
-    agent="probe", spec=agents.parse_spec(full), food=food, episode=episode, seed=100000 + episode,
-    horizon=400, env_kwargs={"physics": "calibrated"},
-)  # fmt: skip
-env, obs, act, step = agents._checkpoint_env(task)
-cut_task = agents.EpisodeTask(
-    agent="probe", spec=agents.parse_spec(cut), food=food, episode=episode, seed=100000 + episode,
-    horizon=400, env_kwargs={"physics": "calibrated"},
-)  # fmt: skip
-_, _, cut_act, _ = agents._checkpoint_env(cut_task)
+
+
+def checkpoint_episode(checkpoint: str) -> tuple:
+    """The checkpoint's env on the episode's bowl, reset: (env, obs, act, step)."""
+    return agents._checkpoint_env(
+        agents.EpisodeTask(
+            agent="probe",
+            spec=agents.parse_spec(checkpoint),
+            food=food,
+            episode=episode,
+            seed=100000 + episode,
+            horizon=400,
+            env_kwargs={"physics": "calibrated"},
+        )
+    )
+
+
+env, obs, act, step = checkpoint_episode(full)
+_, _, cut_act, _ = checkpoint_episode(cut)
 print(
     "step | stage | |offset| mm | full model: |translation|, |rotation| | cut model | 10 nearest demo steps: "
     "mean |translation|, |rotation|, share of zero actions; mean rotation action"
