@@ -13,6 +13,7 @@ for s in 1 2 3; do
   args+=(--agent "no-load-rot seed $s=$R:expert BC no-load-rot obs seed $s")
   args+=(--paired "no-load seed $s" "no-load-rot seed $s")
 done
+args+=(--paired "no-load" "no-load-rot")  # the three seeds together
 rm -rf runs/grid_mended_expert_bc_rot
 veragmil-pool-results runs/grid_mended_expert_bc_rot/compare "${args[@]}"
 mkdir -p $D/compare && cp runs/grid_mended_expert_bc_rot/compare/{paired.md,stages.md} $D/compare/

@@ -15,6 +15,7 @@ for s in 1 2 3; do
   args+=(--agent "full, no-load-rot seed $s=$F:spacemouse BC no-load-rot obs seed $s")
   args+=(--paired "cut, no-load seed $s" "cut, no-load-rot seed $s" --paired "full, no-load-rot seed $s" "cut, no-load-rot seed $s")
 done
+args+=(--paired "cut, no-load" "cut, no-load-rot" --paired "full, no-load-rot" "cut, no-load-rot")  # the three seeds together
 rm -rf runs/grid_mended_spacemouse_bc_noops_rot
 veragmil-pool-results runs/grid_mended_spacemouse_bc_noops_rot/compare "${args[@]}"
 mkdir -p $D/compare && cp runs/grid_mended_spacemouse_bc_noops_rot/compare/{paired.md,stages.md} $D/compare/

@@ -15,6 +15,7 @@ for s in 1 2 3; do
   args+=(--agent "no-load, pauses cut seed $s=$C:spacemouse BC no-load obs no-noops seed $s")
   args+=(--paired "no-load seed $s" "no-load-rot seed $s" --paired "no-load, pauses cut seed $s" "no-load-rot seed $s")
 done
+args+=(--paired "no-load" "no-load-rot" --paired "no-load, pauses cut" "no-load-rot")  # the three seeds together
 rm -rf runs/grid_mended_spacemouse_bc_rot
 veragmil-pool-results runs/grid_mended_spacemouse_bc_rot/compare "${args[@]}"
 mkdir -p $D/compare && cp runs/grid_mended_spacemouse_bc_rot/compare/{paired.md,stages.md} $D/compare/
