@@ -1,7 +1,8 @@
 """
-The calibrated grid in the shape of the paper's Tables II and III: each data half's models (their training seeds
-pooled) beside the paper's VRI and 3DM columns, from a pooled evaluation's ``seeds/table.csv``
-(veragmil-pool-results). The paper's figures are copied from ../../../shared/reference/veragmil-paper.tex.
+A pooled grid in the shape of the paper's Tables II and III: each data half's models (their training seeds pooled)
+beside the paper's VRI and 3DM columns, from a pooled evaluation's ``seeds/table.csv`` (veragmil-pool-results). The
+paper's figures are copied from ../../../shared/reference/veragmil-paper.tex. A model's agent is
+"<half> <model> <observation set> obs", optionally followed by its data's cut ("no-noops").
 
     python results/grid_calibrated_tables/paper_tables.py results/grid_calibrated_tables/seeds/table.csv \
         > results/grid_calibrated_tables/paper_tables.md
@@ -10,6 +11,7 @@ pooled) beside the paper's VRI and 3DM columns, from a pooled evaluation's ``see
 from __future__ import annotations
 
 import csv
+import re
 import sys
 
 FOODS = ("rice", "buckwheat", "barley", "pasta", "peas", "beans", "flakes")
@@ -40,13 +42,14 @@ PAPER_SPILL_TIME = {
 
 
 def _agent(columns: list[str], half: str, model: str) -> str | None:
-    """The pooled agent of ``model`` on ``half``'s data ("<half> operator" or "<half> <model> <obs> obs")."""
+    """The pooled agent of ``model`` on ``half``'s data ("<half> operator" or "<half> <model> <obs> obs[ no-noops]")."""
     if model == "operator":
         name = f"{half} operator"
         return name if f"{name} success %" in columns else None
+    pattern = re.compile(rf"({re.escape(half)} {re.escape(model)} \S+ obs( no-noops)?) success %")
     for c in columns:
-        if c.startswith(f"{half} {model} ") and c.endswith(" obs success %"):
-            return c[: -len(" success %")]
+        if match := pattern.fullmatch(c):
+            return match.group(1)
     return None
 
 
