@@ -8,6 +8,7 @@ import csv
 import inspect
 import json
 import math
+import re
 import subprocess
 import sys
 import warnings
@@ -38,9 +39,9 @@ PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 EPISODES_CSV_HEADER = (
     "agent,food,episode,seed,success,grains_spilled,spilled_volume_cm3,completion_time_s,steps,end_reason,"
     "physics_error,grains_in_spoon,spill_fraction,stage,peak_grains_in_spoon,wall_s,spilled_mass_g,spoon_mass_g,"
-    "physics,spill_limit_of"
+    "physics,spill_limit_of,pile"
 )
-EPISODES_CSV_ROW = "A,rice,0,0,True,2,0.2,10.0,200,success,,3,0.0,held,3,1.0,nan,nan,table1,scooped"
+EPISODES_CSV_ROW = "A,rice,0,0,True,2,0.2,10.0,200,success,,3,0.0,held,3,1.0,nan,nan,table1,scooped,"
 # one line of episodes.jsonl, the journal a resumed run reads back
 JOURNAL_LINE = (
     '{"key": "[\\"expert\\", \\"expert\\", \\"pasta\\", 0, 80, {\\"n_grains\\": 12, \\"pile_variants\\": 1}]", '
@@ -49,12 +50,12 @@ JOURNAL_LINE = (
     '"grains_in_spoon": 12, "spill_fraction": 0.0, "stage": "loaded spoon", "peak_grains_in_spoon": 12, '
     '"wall_s": 1.3754890439995506}}'
 )
-# the same episode as written since grams, the physics and the spill limit are recorded (grams unknown in a journal of
-# before: null; its physics the one every episode ran on before the choice, table1; its spill limit that of its env
-# kwargs, there the default)
+# the same episode as written since grams, the physics, the spill limit and the pile are recorded (grams unknown in a
+# journal of before: null; its physics the one every episode ran on before the choice, table1; its spill limit that
+# of its env kwargs, there the default; its pile unknown: "")
 JOURNAL_LINE_NOW = (
     JOURNAL_LINE[:-2]
-    + ', "spilled_mass_g": null, "spoon_mass_g": null, "physics": "table1", "spill_limit_of": "scooped"}}'
+    + ', "spilled_mass_g": null, "spoon_mass_g": null, "physics": "table1", "spill_limit_of": "scooped", "pile": ""}}'
 )
 
 
@@ -322,6 +323,8 @@ def test_cli_expert_and_dataset_in_two_processes_write_every_output(tmp_path):
     for e in expert:
         assert e["end_reason"] in ("success", "horizon", "gave up") and 0 < e["steps"] <= 300
         assert e["success"] or e["end_reason"] != "success"  # success: the last step's, as demos store it
+        assert re.fullmatch("[0-9a-f]{24}", e["pile"])  # the settled pile it ran on, which pooling compares
+    assert {e["pile"] for e in saved["episodes"] if e["agent"] == "human"} == {""}  # a demo's pile is not known
     assert saved["config"]["foods"] == ["pasta"] and saved["config"]["env_kwargs"] == {
         **CHEAP,
         "physics": DEFAULT_PHYSICS,

@@ -13,21 +13,23 @@ from veragmil_suite.study.publish import publish
 FOODS = ["rice", "pasta"]
 
 
-def _episode(agent: str, food: str, episode: int, success: bool) -> dict:
+def _episode(agent: str, food: str, episode: int, success: bool, pile: str = "") -> dict:
     return EpisodeRecord(
         agent=agent, food=food, episode=episode, seed=100000 + episode, success=success, grains_spilled=0,
         spilled_volume_cm3=0.0, completion_time_s=8.0 if success else 20.0, steps=200, end_reason="success"
         if success else "horizon", physics_error="", grains_in_spoon=30, spill_fraction=0.0,
-        stage="held" if success else "loaded spoon", peak_grains_in_spoon=60, wall_s=5.0,
+        stage="held" if success else "loaded spoon", peak_grains_in_spoon=60, wall_s=5.0, pile=pile,
     ).to_dict()  # fmt: skip
 
 
-def _evaluation(path: Path, wins: dict[str, int], **config) -> Path:
-    """A results.json whose agents each win their first ``wins[agent]`` of 4 episodes per food."""
+def _evaluation(path: Path, wins: dict[str, int], piles: dict[str, str] | None = None, **config) -> Path:
+    """A results.json whose agents each win their first ``wins[agent]`` of 4 episodes per food; ``piles``: the
+    settled pile each food's episodes name (none: records from before piles were named)."""
     settings = dict(foods=FOODS, episodes=4, seed=100000, horizon=400, robot="XArm7", success_hold_s=1.0,
                     env_kwargs={}, versions={"mujoco": "3.8.1"})  # fmt: skip
     settings.update(config, agents={a: f"runs/grid/runs/{a.replace(' ', '_')}/t/models/m.pth" for a in wins})
-    episodes = [_episode(a, f, i, i < n) for a, n in wins.items() for f in FOODS for i in range(4)]
+    piles = piles or {}
+    episodes = [_episode(a, f, i, i < n, piles.get(f, "")) for a, n in wins.items() for f in FOODS for i in range(4)]
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(dict(config=settings, summary=[], episodes=episodes)))
     return path
@@ -113,6 +115,23 @@ def test_evaluations_that_differ_in_what_decides_an_episode_are_refused(tmp_path
     new = _evaluation(tmp_path / "new.json", {"expert BC": 1}, horizon=300)
     with pytest.raises(ValueError, match="differ in 'horizon' \\(300 against 400\\)"):
         pool([("a", old, "expert BC seed 1"), ("b", new, "expert BC")])
+
+
+def test_episodes_of_one_bowl_on_different_settled_piles_are_refused(tmp_path):
+    """Two evaluations alike in every setting whose code built one food's pile differently (a changed lattice) do not
+    score the same bowls: pooling them is refused, naming the food and seed; records that name no pile pool."""
+    old = _evaluation(tmp_path / "old.json", {"expert BC seed 1": 4}, piles={"rice": "a" * 24, "pasta": "b" * 24})
+    new = _evaluation(tmp_path / "new.json", {"expert BCQ seed 1": 1}, piles={"rice": "a" * 24, "pasta": "c" * 24})
+    with pytest.raises(
+        ValueError, match=f"ran pasta's episode of seed 100000 on different settled piles \\({'c' * 24}"
+    ):
+        pool([("a", old, "expert BC seed 1"), ("b", new, "expert BCQ seed 1")])
+    same = _evaluation(tmp_path / "same.json", {"expert BCQ seed 1": 1}, piles={"rice": "a" * 24, "pasta": "b" * 24})
+    unnamed = _evaluation(tmp_path / "unnamed.json", {"spacemouse BC seed 1": 2})
+    result, _ = pool(
+        [("a", old, "expert BC seed 1"), ("b", same, "expert BCQ seed 1"), ("c", unnamed, "spacemouse BC seed 1")]
+    )
+    assert len(result.episodes) == 3 * 2 * 4
 
 
 def test_an_unknown_agent_is_refused_with_the_agents_there(tmp_path):

@@ -6,20 +6,7 @@ set -euo pipefail
 R=results
 OUT=runs/grid_calibrated_tables/eval
 A=()
-# add FOLDER MODEL: every agent of results/FOLDER/results.json named MODEL or "MODEL seed N", under its own name
-add() {
-  local file="$R/$1/results.json" agent
-  while IFS= read -r agent; do
-    A+=(--agent "$agent=$file:$agent")
-  done < <(python - "$file" "$2" <<'PY'
-import json, re, sys
-path, model = sys.argv[1:]
-for agent in json.load(open(path))["config"]["agents"]:
-    if re.fullmatch(re.escape(model) + r"( seed \d+)?", agent):
-        print(agent)
-PY
-  )
-}
+source results/grid_calibrated_tables/add_agents.sh  # add FOLDER MODEL
 add grid_calibrated_noload "expert operator"
 add grid_calibrated_noload "expert BC no-load obs"
 add grid_calibrated_bcrnn_50k_seeds "expert BC-RNN no-load obs"

@@ -6,7 +6,7 @@ import re
 
 import numpy as np
 
-from veragmil_suite.environments.settling import SettledPile, pile_key, settle
+from veragmil_suite.environments.settling import SettledPile, settle
 from veragmil_suite.models.foods import FOODS, PHYSICS, FoodSpec
 from veragmil_suite.models.grains import GrainPile
 
@@ -37,9 +37,8 @@ class PileVariantsMixin:
         piles = {}
         for variant in range(self.pile_variants):
             pile = self._pile(variant, self._env_food, self._env_n_grains, self._env_physics)
-            piles[pile_key(self.bowl, pile, self.solver_options, timestep)] = settle(
-                self.bowl, pile, self.solver_options, timestep
-            )
+            settled = settle(self.bowl, pile, self.solver_options, timestep)
+            piles[settled.key] = settled
         return piles
 
     def _adopt_loaded_pile(self) -> None:

@@ -394,11 +394,13 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
         # a saved state is loaded next (reset_to, reset_from_xml_string): no bowl to place or pile to settle, and the
         # first step holds the pose of that state (hold_restored_pose)
         self._restored_start = self.deterministic_reset
+        self.pile_key = ""  # the settled pile's cache key, which episode records name; "" for a restored state
         if self.deterministic_reset:
             return
 
         # Place the bowl and a settled pile (settled once, then moved rigidly: still settled)
         pile = settle(self.bowl, self.grain_pile, self.solver_options, float(self.sim.model.opt.timestep))
+        self.pile_key = pile.key
         offset = np.array(
             [
                 self.bowl_nominal_xy[0] + self.rng.uniform(*self.bowl_x_range),

@@ -16,7 +16,7 @@ from __future__ import annotations
 import hashlib
 import os
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import mujoco
@@ -48,12 +48,14 @@ class SettledPile:
         grain_qpos: (n, 7) every grain's free-joint pose.
         max_speed_m_s: the fastest grain's speed when settling stopped.
         settle_time_s: simulated time it took.
+        key: its cache key (pile_key), which names the pile in episode records; "" until settle() returns it.
     """
 
     bowl_qpos: np.ndarray
     grain_qpos: np.ndarray
     max_speed_m_s: float
     settle_time_s: float
+    key: str = ""
 
 
 _MEMORY: dict[str, SettledPile] = {}
@@ -124,15 +126,15 @@ def settle(bowl: Bowl, pile: GrainPile, option: dict, timestep: float, use_disk:
                 f"which shipped {len(_SHIPPED)}; a worker settles none itself (piles differ by CPU). Is this "
                 f"worker's MuJoCo ({mujoco.__version__}) the driver's?"
             )
-        return _SHIPPED[key]
+        return replace(_SHIPPED[key], key=key)
     if key in _MEMORY:
         return _MEMORY[key]
     path = cache_dir() / f"{key}.npz"
     entry = pile_cache.load(path, pile.n_grains) if use_disk else None  # None: missing or invalid, settled anew
     if entry is not None:
-        _MEMORY[key] = SettledPile(*entry)
+        _MEMORY[key] = SettledPile(*entry, key=key)
         return _MEMORY[key]
-    result = simulate_settling(xml, bowl, pile)
+    result = replace(simulate_settling(xml, bowl, pile), key=key)
     _MEMORY[key] = result
     if use_disk:
         pile_cache.save(path, result.bowl_qpos, result.grain_qpos, result.max_speed_m_s, result.settle_time_s)

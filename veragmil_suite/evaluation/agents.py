@@ -86,6 +86,7 @@ class EpisodeRecord:
     spoon_mass_g: float = math.nan
     physics: str = PRE_CALIBRATION_PHYSICS  # the grain models it ran on; records that name none predate the choice
     spill_limit_of: str = DEFAULT_SPILL_LIMIT  # what the success rule's spill limit was a fraction of (as physics)
+    pile: str = ""  # the settled pile's cache key (settling.pile_key); "": unknown (a demo, or recorded before)
 
     @classmethod
     def columns(cls) -> tuple[str, ...]:
@@ -334,6 +335,7 @@ def run_episode(task: EpisodeTask) -> EpisodeRecord:
         spoon_mass_g=metrics["spoon_mass_g"],
         physics=env.physics,
         spill_limit_of=env.spill_limit_of,
+        pile=env.pile_key,
     )
 
 

@@ -246,6 +246,21 @@ def _groups_by(rows: list[dict], keys: tuple[str, ...]) -> dict[tuple, list[dict
     return out
 
 
+def _check_piles(episodes: list[EpisodeRecord], source: str, seen: dict[tuple, tuple[str, str]]) -> None:
+    """Refuses an episode whose food, seed and physics ran on another settled pile in an episode already pooled
+    (``seen``: (food, seed, physics) -> (pile, source)); records that name no pile are not compared."""
+    for e in episodes:
+        if not e.pile:
+            continue
+        first = seen.setdefault((e.food, e.seed, e.physics), (e.pile, source))
+        if first[0] != e.pile:
+            raise ValueError(
+                f"{source} and {first[1]} ran {e.food}'s episode of seed {e.seed} on different settled piles "
+                f"({e.pile} against {first[0]}: the code that builds the pile changed between them); their episodes "
+                "are not comparable"
+            )
+
+
 def pool(choices: list[tuple[str, Path, str]]) -> tuple[EvaluationResult, list[dict]]:
     """
     The chosen agents (new name, results.json, agent there) with their episodes under their new names, and the seed
@@ -253,13 +268,15 @@ def pool(choices: list[tuple[str, Path, str]]) -> tuple[EvaluationResult, list[d
 
     Raises:
         ValueError: [a name given twice, a file that is missing or not an evaluation's, an agent the file does not
-            hold, evaluations that differ in a setting of SHARED_SETTINGS (named with both values)]
+            hold, evaluations that differ in a setting of SHARED_SETTINGS (named with both values), episodes of one
+            food, seed and physics that ran on different settled piles (a code change between the evaluations)]
     """
     loaded: dict[Path, dict] = {}
     episodes: list[EpisodeRecord] = []
     agents: dict[str, str] = {}
     sources: dict[str, str] = {}
     rnn_horizons: dict[str, int] = {}
+    piles: dict[tuple, tuple[str, str]] = {}
     reference: tuple[Path, dict] | None = None
     for name, source, agent in choices:
         if name in agents:
@@ -289,11 +306,13 @@ def pool(choices: list[tuple[str, Path, str]]) -> tuple[EvaluationResult, list[d
         sources[name] = f"{source}:{agent}"
         if agent in config.get("rnn_horizon", {}):  # its LSTM's reset period, when the evaluation set it
             rnn_horizons[name] = config["rnn_horizon"][agent]
-        episodes += [
+        chosen = [
             replace(EpisodeRecord.from_dict(e, config.get("env_kwargs")), agent=name)
             for e in loaded[source]["episodes"]
             if e["agent"] == agent
         ]
+        _check_piles(chosen, f"{source}:{agent}", piles)
+        episodes += chosen
     config = {k: reference[1][k] for k in SHARED_SETTINGS if k in reference[1]}
     if rnn_horizons:
         config["rnn_horizon"] = rnn_horizons
