@@ -551,3 +551,33 @@ def test_an_rnn_horizon_that_is_no_count_or_has_no_recurrent_agent_exits_2(tmp_p
     assert main(["--agent", "expert", "--rnn-horizon", "20", "--output-dir", str(out), "--foods", "pasta"]) == 2
     assert "recurrent checkpoints (BC-RNN" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_a_journaled_episode_on_a_pile_no_longer_drawn_runs_again(tmp_path):
+    out = tmp_path / "eval"
+    run = dict(foods=["pasta"], episodes=2, processes=1, horizon=4, env_kwargs=CHEAP, output_dir=str(out))
+    first = evaluate({"expert": "expert"}, **run, progress=False)
+    piles = [e.pile for e in first.episodes]
+    assert all(re.fullmatch("[0-9a-f]{24}", p) for p in piles)
+    # as if the lattice had changed since episode 0 ran: its record names a pile this code does not build
+    journal = out / JOURNAL_NAME
+    lines = journal.read_text().splitlines()
+    entry = json.loads(lines[0])
+    assert entry["record"]["seed"] == 0
+    entry["record"]["pile"] = "0" * 24
+    journal.write_text("\n".join([json.dumps(entry), *lines[1:]]) + "\n")
+    said = []
+    again = evaluate({"expert": "expert"}, **run, progress=False, resume=True, say=said.append)
+    assert any("1 episodes journaled" in s and "no longer draws" in s for s in said)
+    assert any("skipping 1 evaluation episodes" in s and "; 1 to run" in s for s in said)
+    assert [e.pile for e in again.episodes] == piles
+    # the episode run again is journaled after the stale one and is what a later resume takes
+    said.clear()
+    evaluate({"expert": "expert"}, **run, progress=False, resume=True, say=said.append)
+    assert not any("no longer draws" in s for s in said) and any("; 0 to run" in s for s in said)
+    # a record that names no pile (journaled before piles were named) is taken as it is
+    entry["record"]["pile"] = ""
+    journal.write_text(json.dumps(entry) + "\n")
+    said.clear()
+    evaluate({"expert": "expert"}, **run, progress=False, resume=True, say=said.append)
+    assert not any("no longer draws" in s for s in said) and any("skipping 1 evaluation" in s for s in said)

@@ -6,7 +6,7 @@ import re
 
 import numpy as np
 
-from veragmil_suite.environments.settling import SettledPile, settle
+from veragmil_suite.environments.settling import SettledPile, pile_key, settle
 from veragmil_suite.models.foods import FOODS, PHYSICS, FoodSpec
 from veragmil_suite.models.grains import GrainPile
 
@@ -35,11 +35,22 @@ class PileVariantsMixin:
         """
         timestep = float(self.sim.model.opt.timestep)
         piles = {}
-        for variant in range(self.pile_variants):
-            pile = self._pile(variant, self._env_food, self._env_n_grains, self._env_physics)
+        for pile in self._variant_piles():
             settled = settle(self.bowl, pile, self.solver_options, timestep)
             piles[settled.key] = settled
         return piles
+
+    def pile_keys(self) -> set[str]:
+        """The cache keys of every pile variant this environment can draw, found without settling: a journaled
+        episode that names another pile ran on a lattice or settling this code no longer builds."""
+        timestep = float(self.sim.model.opt.timestep)
+        return {pile_key(self.bowl, pile, self.solver_options, timestep) for pile in self._variant_piles()}
+
+    def _variant_piles(self) -> list[GrainPile]:
+        return [
+            self._pile(variant, self._env_food, self._env_n_grains, self._env_physics)
+            for variant in range(self.pile_variants)
+        ]
 
     def _adopt_loaded_pile(self) -> None:
         """

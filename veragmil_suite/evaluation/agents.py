@@ -355,11 +355,31 @@ def driver_piles(tasks: list[EpisodeTask]) -> dict:
     Every pile variant the tasks' environments can draw, settled on this machine (or read from its cache), by
     cache key: Ray workers score their episodes on these, whatever their CPU (settling.use_shipped_piles).
     """
+    piles: dict = {}
+    for _, env in _task_environments(tasks):
+        piles.update(env.settled_piles())
+    return piles
+
+
+def stale_pile_tasks(done: list[tuple[EpisodeTask, EpisodeRecord]]) -> list[EpisodeTask]:
+    """The journaled episodes (``done``: task and record) whose record names a settled pile that the task's
+    environment no longer draws: a change to the lattice or the settling since they ran. Records that name no pile
+    (journaled before piles were named) are taken as they are."""
+    named = {id(task): record.pile for task, record in done if record.pile}
+    stale = []
+    for group, env in _task_environments([task for task, _ in done if id(task) in named]):
+        drawn = env.pile_keys()
+        stale += [task for task in group if named[id(task)] not in drawn]
+    return stale
+
+
+def _task_environments(tasks: list[EpisodeTask]):
+    """One environment per distinct setting of the tasks' environments (any seed: the seed draws one of the
+    variants, which settled_piles and pile_keys cover), yielded with its tasks and closed after."""
     import veragmil_suite  # noqa: F401  (registers ScoopGranular in a worker; the package imports this module)
 
     bases: dict[str, dict] = {}
-    built: set[str] = set()
-    piles: dict = {}
+    groups: dict[str, tuple[dict, list[EpisodeTask]]] = {}
     for task in tasks:
         target = task.spec.target
         if target not in bases:
@@ -367,16 +387,14 @@ def driver_piles(tasks: list[EpisodeTask]) -> dict:
                 EXPERT_KWARGS if task.spec.kind == "expert" else checkpoint_base_kwargs(env_metadata(target))
             )
         kwargs = _env_kwargs(task, bases[target])
-        # the seed draws one variant; settled_piles settles them all
         kwargs.update(seed=0, has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False)
-        key = canonical(kwargs)
-        if key in built:
-            continue
-        built.add(key)
+        groups.setdefault(canonical(kwargs), (kwargs, []))[1].append(task)
+    for kwargs, group in groups.values():
         env = robosuite.make("ScoopGranular", **kwargs)
-        piles.update(env.settled_piles())
-        env.close()
-    return piles
+        try:
+            yield group, env
+        finally:
+            env.close()
 
 
 def env_metadata(path: str) -> dict:

@@ -35,6 +35,7 @@ from veragmil_suite.evaluation.agents import (
     init_worker,
     parse_spec,
     run_task,
+    stale_pile_tasks,
 )
 from veragmil_suite.evaluation.reporting import EvaluationResult, json_safe, video_name
 from veragmil_suite.learning.checkpoints import read_checkpoint, rnn_horizon_of
@@ -73,7 +74,8 @@ def evaluate(
     (agent, food) are saved as mp4 under ``output_dir``/videos. Writes the outputs when ``output_dir`` is given,
     and journals each finished episode in ``output_dir``/episodes.jsonl as it ends: with ``resume``, episodes
     the journal holds (same agent SPEC, food, seed, horizon, env_kwargs and rnn horizon; their video, if asked
-    for, on disk) are taken from it instead of run again, whatever the agent is named now.
+    for, on disk) are taken from it instead of run again, whatever the agent is named now, unless their record
+    names a settled pile the environment no longer draws (agents.stale_pile_tasks): those run again.
 
     Episodes run in ``processes`` worker processes, or with ``ray`` (a cluster's address, or
     distributed.THIS_MACHINE) as Ray tasks of one CPU each, on the piles settled here; either way the journal and
@@ -136,8 +138,14 @@ def evaluate(
         say(journal.describe_set_aside())
     if journal is not None and resume:
         done = [(t, journal.get(t)) for t in tasks]
-        reused = [replace(record, agent=t.agent) for t, record in done if record is not None]
-        tasks = [t for t, record in done if record is None]
+        stale = {id(t) for t in stale_pile_tasks([(t, r) for t, r in done if r is not None])}
+        if stale and say is not None:
+            say(
+                f"{len(stale)} episodes journaled in {journal.path} ran on settled piles this code no longer draws "
+                "(the lattice or the settling changed since): running them again"
+            )
+        reused = [replace(record, agent=t.agent) for t, record in done if record is not None and id(t) not in stale]
+        tasks = [t for t, record in done if record is None or id(t) in stale]
         if reused and say is not None:
             say(f"skipping {len(reused)} evaluation episodes journaled in {journal.path}; {len(tasks)} to run")
         records += reused

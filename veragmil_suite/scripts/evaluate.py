@@ -86,7 +86,8 @@ def build_parser() -> Parser:
         "--resume",
         action="store_true",
         help="take the episodes journaled in OUTPUT_DIR/episodes.jsonl (same agent SPEC, food, seed, horizon and "
-        "env kwargs, whatever the agent's name) instead of running them again; without it an earlier journal is "
+        "env kwargs, whatever the agent's name; one on a settled pile this code no longer draws runs again) instead "
+        "of running them again; without it an earlier journal is "
         "kept aside (episodes.replaced.jsonl) and a new one started",
     )
     p.add_argument(
