@@ -416,6 +416,26 @@ def test_physics_solver_options_update_the_defaults_in_the_scene_too():
     env.close()
 
 
+def test_a_food_that_names_its_own_solver_iterations_runs_its_pile_with_them():
+    from veragmil_suite.models.foods import FOODS, GrainModel
+    from veragmil_suite.models.scoop_task import pile_solver_options
+
+    peas, pasta = FOODS["peas"], FOODS["pasta"]
+    assert pile_solver_options(peas.grain("calibrated"), "calibrated")["iterations"] == "100"
+    assert pile_solver_options(pasta.grain("calibrated"), "calibrated") == PHYSICS_SOLVER_OPTIONS["calibrated"]
+    assert pile_solver_options(peas.grain("table1"), "table1") == PHYSICS_SOLVER_OPTIONS["table1"]
+    env = make_env("peas", n_grains=12, physics="calibrated")
+    env.reset()
+    assert env.sim.model.opt.iterations == 100 and env.solver_options["iterations"] == "100"
+    env.close()
+    env = make_env("peas", n_grains=12, physics="calibrated", physics_solver_options={"iterations": "60"})
+    assert env.solver_options["iterations"] == "60"  # what the caller asks for still wins
+    env.close()
+    for bad in (0, 2.5, True, "100"):
+        with pytest.raises(ValueError, match="solver_iterations must be a positive integer or None"):
+            GrainModel("sphere", (0.006, 0.008), (), 1120.0, 0.4, 0.2, solver_iterations=bad)
+
+
 def test_overhead_camera_renders_rgb_and_depth():
     env = make_env(
         "peas",

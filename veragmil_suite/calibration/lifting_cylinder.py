@@ -89,7 +89,7 @@ def tube_size(food: FoodSpec, physics: str, scale: float = 1.0) -> tuple[float, 
 def _model_xml(
     pile: GrainPile, radius: float, height: float, physics: str, solver_options: dict | None, poured: bool = False
 ) -> str:
-    root, world = calibration_scene("lifting_cylinder", physics, solver_options)
+    root, world = calibration_scene("lifting_cylinder", physics, solver_options, grain=pile.grain)
     tube = ET.SubElement(world, "body", name="tube", mocap="true", pos="0 0 0")
     t = STAVE_HALF_THICKNESS_M
     chord = 2 * (radius + t) * math.tan(math.pi / TUBE_STAVES) * 1.1

@@ -13,22 +13,24 @@ import mujoco
 import numpy as np
 
 from veragmil_suite.models import contact_groups
-from veragmil_suite.models.scoop_task import PHYSICS_SOLVER_OPTIONS, PHYSICS_TIMESTEP_S
+from veragmil_suite.models.foods import GrainModel
+from veragmil_suite.models.scoop_task import PHYSICS_SOLVER_OPTIONS, PHYSICS_TIMESTEP_S, pile_solver_options
 
 REST_SPEED_M_S = 0.002  # every grain slower than this: at rest (the tests' stopping rule)
 EJECTED_SPEED_M_S = 3.0  # faster than any fall in the tests (2 m/s from 20 cm): a grain the solver threw
 
 
 def calibration_scene(
-    name: str, physics: str, solver_options: dict | None = None, tilt_rad: float = 0.0
+    name: str, physics: str, solver_options: dict | None = None, tilt_rad: float = 0.0, grain: GrainModel | None = None
 ) -> tuple[ET.Element, ET.Element]:
-    """The root and worldbody of a model under ``physics``' solver settings and the task's timestep (``solver_options``,
-    MuJoCo's ``<option>`` attributes, update either), with a support whose top passes through the origin, tilted
-    ``tilt_rad`` about y (downhill is +x).
+    """The root and worldbody of a model under the task's solver settings for ``physics`` (those of a pile of ``grain``
+    where given: scoop_task.pile_solver_options) and timestep (``solver_options``, MuJoCo's ``<option>`` attributes,
+    update either), with a support whose top passes through the origin, tilted ``tilt_rad`` about y (downhill is +x).
 
     The support's friction is below every grain's, so a grain's own friction acts (MuJoCo takes the larger).
     """
-    option = {"timestep": repr(PHYSICS_TIMESTEP_S), **PHYSICS_SOLVER_OPTIONS[physics], **(solver_options or {})}
+    task_options = PHYSICS_SOLVER_OPTIONS[physics] if grain is None else pile_solver_options(grain, physics)
+    option = {"timestep": repr(PHYSICS_TIMESTEP_S), **task_options, **(solver_options or {})}
     root = ET.Element("mujoco", model=name)
     # angles in radians, as in robosuite's models (MuJoCo's own default is degrees)
     ET.SubElement(root, "compiler", angle="radian")

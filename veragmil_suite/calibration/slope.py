@@ -27,7 +27,7 @@ def slope_travel_m(
     """
     pile = GrainPile(food, 1, np.random.default_rng(seed), physics=physics)
     tilt = math.radians(slope_deg)
-    root, world = calibration_scene("slope", physics, tilt_rad=tilt)
+    root, world = calibration_scene("slope", physics, tilt_rad=tilt, grain=pile.grain)
     world.append(pile.bodies()[0])
     model = mujoco.MjModel.from_xml_string(ET.tostring(root, encoding="unicode"))
     data = mujoco.MjData(model)

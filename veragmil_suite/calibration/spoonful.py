@@ -43,7 +43,7 @@ def level_spoonful_g(
     grain = food.grain(physics)
     n = max(6, int(2.0 * dish_volume_m3(SPOON_SHAPE) * 0.6 / grain.piece_volume_m3()))
     pile = GrainPile(food, n, np.random.default_rng(seed), physics=physics)
-    root, world = calibration_scene("spoonful", physics, solver_options)
+    root, world = calibration_scene("spoonful", physics, solver_options, grain=pile.grain)
     spoon = ET.SubElement(world, "body", name="spoon", pos=f"0 0 {RIM_HEIGHT_M}")
     for g in SPOON_SHAPE.geoms():
         geom = ET.SubElement(spoon, "geom", name="spoon_" + g["name"], type=g["type"])

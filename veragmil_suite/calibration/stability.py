@@ -27,7 +27,7 @@ from veragmil_suite.environments.settling import pile_model_xml, simulate_settli
 from veragmil_suite.models.bowl import Bowl
 from veragmil_suite.models.foods import FOODS, PHYSICS
 from veragmil_suite.models.grains import GrainPile
-from veragmil_suite.models.scoop_task import GRAIN_SLEEP_TOLERANCE, PHYSICS_SOLVER_OPTIONS, PHYSICS_TIMESTEP_S
+from veragmil_suite.models.scoop_task import GRAIN_SLEEP_TOLERANCE, PHYSICS_TIMESTEP_S, pile_solver_options
 
 CREEP_LIMIT_M = 5e-4  # a grain of a pile at rest moves less than this over the watch
 
@@ -43,7 +43,7 @@ def settle_and_watch(
     spec = FOODS[food]
     pile = GrainPile(spec, spec.grain(physics).default_grains, np.random.default_rng(seed), physics=physics)
     bowl = Bowl(name="bowl")
-    option = PHYSICS_SOLVER_OPTIONS[physics]
+    option = pile_solver_options(pile.grain, physics)
     xml = pile_model_xml(bowl, pile, option, PHYSICS_TIMESTEP_S)
     row = {"food": food, "physics": physics, "seed": seed, "sleep_tolerance": sleep_tolerance}
     start = time.perf_counter()

@@ -41,11 +41,11 @@ from veragmil_suite.models.humanoid import (
 )
 from veragmil_suite.models.scoop_task import (
     GRAIN_SLEEP_TOLERANCE,
-    PHYSICS_SOLVER_OPTIONS,
     PHYSICS_TIMESTEP_S,
     ScoopTask,
     check_physics_timestep,
     check_sleep_tolerance,
+    pile_solver_options,
 )
 from veragmil_suite.models.spoon_gripper import spoon_contact
 from veragmil_suite.utils.kinematics import quat_mul_wxyz
@@ -347,8 +347,10 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
 
     @property
     def solver_options(self) -> dict:
-        """MuJoCo <option> attributes of the scene and of settling: the defaults, updated by physics_solver_options."""
-        return {**PHYSICS_SOLVER_OPTIONS[self.physics], **(self.physics_solver_options or {})}
+        """MuJoCo <option> attributes of the scene and of settling: its food's and physics' (pile_solver_options),
+        updated by physics_solver_options."""
+        grain = self._env_food.grain(self._env_physics)
+        return {**pile_solver_options(grain, self._env_physics), **(self.physics_solver_options or {})}
 
     def _setup_references(self):
         """

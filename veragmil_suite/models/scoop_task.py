@@ -7,7 +7,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 from robosuite.models.tasks import ManipulationTask
 
-from veragmil_suite.models.foods import CONTACT_TIMECONST_S
+from veragmil_suite.models.foods import CONTACT_TIMECONST_S, GrainModel
 from veragmil_suite.models.grains import GrainPile
 
 # MuJoCo's default Newton solver is unusable for piles (600 peas: 2.6 s per step). Conjugate gradient with an
@@ -28,12 +28,24 @@ _TABLE1_SOLVER_OPTIONS = {
 }
 # Solver settings by physics (veragmil_suite.models.foods.PHYSICS). Calibrated: soft friction (impratio 1) lets grains
 # creep down a heap below their friction angle (rice heaped at 9 degrees); 10 heaps rice as 100 does (22-26 degrees).
-# Stiffer friction needs more iterations to converge: 40 keep every catalog pile in the bowl under the spoon, which
-# 30 did not for rice as a straight pair with rolling rows (its rows were the cost: results/calibration/RUN.md).
+# Stiffer friction needs more iterations to converge: 40 keep rice, buckwheat, barley, pasta and beans in the bowl
+# under the spoon, which 30 did not for rice as a straight pair with rolling rows (its rows were the cost:
+# results/calibration/RUN.md); a food that needs more names its own cap (GrainModel.solver_iterations).
 PHYSICS_SOLVER_OPTIONS = {
     "table1": _TABLE1_SOLVER_OPTIONS,
     "calibrated": {**_TABLE1_SOLVER_OPTIONS, "iterations": "40", "impratio": "10"},
 }
+
+
+def pile_solver_options(grain: GrainModel, physics: str) -> dict[str, str]:
+    """MuJoCo <option> attributes of a pile of ``grain`` (the grain model of ``physics``): the physics' solver settings,
+    with the grain's own iteration cap where it has one."""
+    options = dict(PHYSICS_SOLVER_OPTIONS[physics])
+    if grain.solver_iterations is not None:
+        options["iterations"] = str(grain.solver_iterations)
+    return options
+
+
 # MuJoCo's island sleeping (mjENBL_SLEEP, MuJoCo >= 3.8): a tree whose every velocity stays under this tolerance
 # (m/s and rad/s, scaled by MuJoCo per degree of freedom) falls asleep and costs no collision or solver work until
 # something awake touches its island. MuJoCo's default, 1e-4, is under a settled pile's own creep: no grain slept.
@@ -149,7 +161,7 @@ class ScoopTask(ManipulationTask):
             flag.set("sleep", "enable")
             option.set("sleep_tolerance", repr(float(sleep_tolerance)))
         for key, value in (
-            PHYSICS_SOLVER_OPTIONS[grain_pile.physics] if solver_options is None else solver_options
+            pile_solver_options(grain_pile.grain, grain_pile.physics) if solver_options is None else solver_options
         ).items():
             option.set(key, str(value))
         if fast_rendering:
