@@ -38,11 +38,14 @@ spec = foods.FOODS[args.food]
 grain = replace(spec.calibrated, **changes)
 if args.mass_mg:
     grain = replace(grain, density_kg_m3=args.mass_mg * 1e-6 / grain.piece_volume_m3())
+solver_changes = json.loads(args.solver) if args.solver else {}
+if "iterations" in solver_changes and grain.solver_iterations is not None:  # the food's own cap gives way too
+    grain = replace(grain, solver_iterations=int(solver_changes["iterations"]))
 spec = replace(spec, calibrated=grain)
 foods.FOODS[args.food] = spec
 # the solver changes apply to every scene of the calibrated physics (slope, cylinder, task)
-solver = scoop_task.PHYSICS_SOLVER_OPTIONS["calibrated"]
-solver.update(json.loads(args.solver) if args.solver else {})
+scoop_task.PHYSICS_SOLVER_OPTIONS["calibrated"].update(solver_changes)
+solver = scoop_task.pile_solver_options(grain, "calibrated")
 print(f"# {args.food} {changes} density {grain.density_kg_m3:.0f} condim {grain.condim} solver {solver}", flush=True)
 skip = set(args.skip.split(","))
 if "slope" not in skip:
@@ -51,7 +54,7 @@ if "slope" not in skip:
 if "cylinder" not in skip:
     for cyl_seed in [int(x) for x in args.cyl_seeds.split(",")]:
         t = time.time()
-        r = lifting_cylinder(spec, "calibrated", seed=cyl_seed, solver_options=solver, scale=args.scale)
+        r = lifting_cylinder(spec, "calibrated", seed=cyl_seed, scale=args.scale)
         d = r.as_dict()
         print(
             f"cylinder {args.scale}x seed {cyl_seed}: fit {d['angle_slope_fit_deg']:.1f} h/b "

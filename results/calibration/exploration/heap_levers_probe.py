@@ -80,7 +80,8 @@ changes = {k: tuple(v) if isinstance(v, list) else v for k, v in json.loads(args
 spec = foods.FOODS[args.food]
 spec = replace(spec, calibrated=replace(spec.calibrated, **changes))
 foods.FOODS[args.food] = spec
-solver = {**scoop_task.PHYSICS_SOLVER_OPTIONS["calibrated"], **(json.loads(args.solver) if args.solver else {})}
+solver = scoop_task.pile_solver_options(spec.calibrated, "calibrated")  # the food's own cap where it names one
+solver.update(json.loads(args.solver) if args.solver else {})
 print(f"# {args.food} set {args.set} changes {changes} solver {solver}", flush=True)
 if args.slope:
     for deg in (5.0, 8.0):
