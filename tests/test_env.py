@@ -420,9 +420,9 @@ def test_a_food_that_names_its_own_solver_iterations_runs_its_pile_with_them():
     from veragmil_suite.models.foods import FOODS, GrainModel
     from veragmil_suite.models.scoop_task import pile_solver_options
 
-    peas, pasta = FOODS["peas"], FOODS["pasta"]
+    peas, rice = FOODS["peas"], FOODS["rice"]
     assert pile_solver_options(peas.grain("calibrated"), "calibrated")["iterations"] == "100"
-    assert pile_solver_options(pasta.grain("calibrated"), "calibrated") == PHYSICS_SOLVER_OPTIONS["calibrated"]
+    assert pile_solver_options(rice.grain("calibrated"), "calibrated") == PHYSICS_SOLVER_OPTIONS["calibrated"]
     assert pile_solver_options(peas.grain("table1"), "table1") == PHYSICS_SOLVER_OPTIONS["table1"]
     env = make_env("peas", n_grains=12, physics="calibrated")
     env.reset()

@@ -15,6 +15,7 @@ import pytest
 from helpers.output import warning_lines
 from helpers.programs import BIN, run_program
 
+from veragmil_suite.environments.pile_variants import drawn_pile_keys
 from veragmil_suite.learning.algorithms import ALGORITHMS
 from veragmil_suite.study.record import record_food
 from veragmil_suite.study.settings import PipelineSettings, StageError
@@ -529,6 +530,20 @@ def test_a_shorter_recording_is_continued_to_the_demos_one_run_records(tmp_path)
             assert (a["data"][name]["states"][:] == b["data"][name]["states"][:]).all()
     with pytest.raises(StageError, match="recorded with other settings: n_grains 12 \\(asked: 10\\)"):
         record_food(grown, demos=3, **dict(kwargs, n_grains=10))
+    # demos on piles this code no longer settles (another grain model, lattice or solver) are not continued or
+    # taken as complete; the file is left as it was
+    stale = tmp_path / "stale.hdf5"
+    shutil.copyfile(grown, stale)
+    with h5py.File(stale, "r+") as f:
+        assert {f[f"data/{name}"].attrs["pile"] for name in f["data"]} <= drawn_pile_keys(
+            json.loads(f["data"].attrs["env_args"])["env_kwargs"]
+        )
+        f["data/demo_1"].attrs["pile"] = "0" * 16
+    held = stale.read_bytes()
+    for demos in (2, 3):
+        with pytest.raises(StageError, match="stale.hdf5 holds demos on 1 settled piles this code no longer draws"):
+            record_food(stale, demos=demos, **kwargs)
+    assert stale.read_bytes() == held
     with pytest.raises(StageError, match="physics 'calibrated' \\(asked: 'table1'\\)"):
         record_food(grown, demos=3, **dict(kwargs, physics="table1"))
     # the wrist sensor (the wrench observations): a file without it cannot serve a study that trains on it; a file

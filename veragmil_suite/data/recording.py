@@ -52,6 +52,7 @@ class EpisodeRecorder:
         self._info = {}
         self._stages = StageTracker()
         self.model_file = None
+        self.pile_key = ""
         self.obs = None
         self._converted = None
 
@@ -60,6 +61,7 @@ class EpisodeRecorder:
         observation."""
         self._clear()
         self.env.reset(seed=seed)
+        self.pile_key = self.env.pile_key  # the restart below loads a state, which names no settled pile
         raw, self.model_file = robomimic_obs.restart_from_current_state(self.env)
         self.obs = raw
         self._converted = robomimic_obs.observation(self.env, raw)
@@ -112,7 +114,8 @@ class EpisodeRecorder:
         return len(self._actions)
 
     def episode(self, attrs: dict | None = None) -> Episode:
-        """The episode so far, as arrays (robomimic's done_mode 2: done at success and at the end)."""
+        """The episode so far, as arrays (robomimic's done_mode 2: done at success and at the end); its attrs name
+        the settled pile it started on (``pile``: a recording made on piles this code no longer settles is known)."""
         if not self._actions:
             raise RuntimeError("no steps recorded")
         dones = np.array(self._successes, dtype=np.int64)
@@ -128,7 +131,7 @@ class EpisodeRecorder:
             next_obs={k: np.stack([o[k] for o in self._next_obs]) for k in self._next_obs[0]},
             model_file=self.model_file,
             metrics=episode_metrics(self._info, self._stages.stage),
-            attrs=dict(attrs or {}),
+            attrs={"pile": self.pile_key, **(attrs or {})},
             action_bounds=tuple(np.asarray(b, dtype=np.float64) for b in self.env.action_spec),
         )
 

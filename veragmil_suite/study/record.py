@@ -13,8 +13,17 @@ import h5py
 
 from veragmil_suite.data.collection import record_scripted, recording_env_kwargs
 from veragmil_suite.data.datasets import drop_noops, merge_datasets
-from veragmil_suite.data.schema import DEMO_START, DatasetError, demo_names, demo_start, open_dataset, seeds_used
+from veragmil_suite.data.schema import (
+    DEMO_START,
+    DatasetError,
+    attr_text,
+    demo_names,
+    demo_start,
+    open_dataset,
+    seeds_used,
+)
 from veragmil_suite.data.writer import updated_file
+from veragmil_suite.environments.pile_variants import drawn_pile_keys
 from veragmil_suite.learning.observation_sets import WRENCH_OBSERVATIONS, needs_wrench
 from veragmil_suite.models.foods import (
     DEFAULT_PHYSICS,
@@ -41,6 +50,7 @@ def _recorded(path: Path) -> dict:
         names = demo_names(f)
         first = f["data"][names[0]].attrs if names else {}
         tried = seeds_used(f)
+        piles = {attr_text(f["data"][name].attrs.get("pile", "")) for name in names}
         return dict(
             next_seed=max(tried) + 1 if tried else None,
             demos=len(names),
@@ -55,6 +65,9 @@ def _recorded(path: Path) -> dict:
             profile=str(first.get("profile", "")),
             seed=int(first["env_seed"]) if "env_seed" in first else None,
             start=demo_start(f["data"].attrs),
+            # the settled piles its demos name ("": recorded before demos named them, taken as they are)
+            piles=piles - {""},
+            env_kwargs=kwargs,
         )
 
 
@@ -101,6 +114,12 @@ def check_recording(
     if differ:
         described = ", ".join(f"{k} {a!r} (asked: {b!r})" for k, (a, b) in differ.items())
         raise StageError(f"{path} was recorded with other settings: {described}; use another output directory")
+    if held["piles"] and (stale := held["piles"] - drawn_pile_keys(held["env_kwargs"])):
+        raise StageError(
+            f"{path} holds demos on {len(stale)} settled piles this code no longer draws (its grains, lattice, "
+            "settling or solver changed since they were recorded); move the file away to record them again, or use "
+            "another output directory"
+        )
     return held
 
 
