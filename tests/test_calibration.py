@@ -321,7 +321,7 @@ def test_a_spoon_turned_level_in_a_calibrated_pile_throws_no_grain(food, seed, s
     solver diverged there: rice as a straight sphere pair ended a grain 1.08 m away at 3.3 m/s, buckwheat at
     3.7 m/s. Grains that resist rolling by shape need no such rows. Peas and flakes, with the task's sleeping, threw
     at the physics' 40 solver iterations (a pea 0.14 m away at 1.2 m/s, a flake 0.17 m at 1.3 m/s): their grain
-    models ask for 100 (GrainModel.solver_iterations)."""
+    models ask for 100 (GrainModel.solver_iterations), as pasta's does."""
     from veragmil_suite.devices.expert import ScriptedScooper
     from veragmil_suite.models.scoop_task import GRAIN_SLEEP_TOLERANCE
     from veragmil_suite.scripts.bench import make_env
