@@ -15,7 +15,6 @@ import pytest
 from helpers.output import warning_lines
 from helpers.programs import BIN, run_program
 
-from veragmil_suite.environments.pile_variants import drawn_pile_keys
 from veragmil_suite.learning.algorithms import ALGORITHMS
 from veragmil_suite.study.record import record_food
 from veragmil_suite.study.settings import PipelineSettings, StageError
@@ -530,20 +529,31 @@ def test_a_shorter_recording_is_continued_to_the_demos_one_run_records(tmp_path)
             assert (a["data"][name]["states"][:] == b["data"][name]["states"][:]).all()
     with pytest.raises(StageError, match="recorded with other settings: n_grains 12 \\(asked: 10\\)"):
         record_food(grown, demos=3, **dict(kwargs, n_grains=10))
-    # demos on piles this code no longer settles (another grain model, lattice or solver) are not continued or
-    # taken as complete; the file is left as it was
-    stale = tmp_path / "stale.hdf5"
-    shutil.copyfile(grown, stale)
-    with h5py.File(stale, "r+") as f:
-        assert {f[f"data/{name}"].attrs["pile"] for name in f["data"]} <= drawn_pile_keys(
-            json.loads(f["data"].attrs["env_args"])["env_kwargs"]
-        )
-        f["data/demo_1"].attrs["pile"] = "0" * 16
-    held = stale.read_bytes()
-    for demos in (2, 3):
-        with pytest.raises(StageError, match="stale.hdf5 holds demos on 1 settled piles this code no longer draws"):
-            record_food(stale, demos=demos, **kwargs)
-    assert stale.read_bytes() == held
+    # demos on piles this code no longer settles (another grain model, lattice or solver), or observed otherwise
+    # than it records (an observation added since), are not continued or taken as complete; the file is left as it was
+    with h5py.File(grown) as f:
+        assert all(f[f"data/{name}"].attrs["pile"] for name in f["data"])  # each demo names its settled pile
+
+    def other_pile(f):
+        f["data/demo_1"].attrs["pile"] = "0" * 24
+
+    def one_observation_fewer(f):
+        for name in f["data"]:
+            del f[f"data/{name}/obs/bowl_pos"], f[f"data/{name}/next_obs/bowl_pos"]
+
+    for change, said in (
+        (other_pile, "on 1 settled piles this code no longer draws \\(its grains, lattice, settling or solver\\)"),
+        (one_observation_fewer, "observed otherwise than this code records \\(bowl_pos\\)"),
+    ):
+        stale = tmp_path / f"{change.__name__}.hdf5"
+        shutil.copyfile(grown, stale)
+        with h5py.File(stale, "r+") as f:
+            change(f)
+        held = stale.read_bytes()
+        for demos in (2, 3):
+            with pytest.raises(StageError, match=f"{stale.name} holds demos {said}; move the file away"):
+                record_food(stale, demos=demos, **kwargs)
+        assert stale.read_bytes() == held
     with pytest.raises(StageError, match="physics 'calibrated' \\(asked: 'table1'\\)"):
         record_food(grown, demos=3, **dict(kwargs, physics="table1"))
     # the wrist sensor (the wrench observations): a file without it cannot serve a study that trains on it; a file

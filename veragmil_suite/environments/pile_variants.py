@@ -14,19 +14,6 @@ from veragmil_suite.models.grains import GrainPile
 LOADED_PILE_VARIANTS_TRIED = 64
 
 
-def drawn_pile_keys(env_kwargs: dict) -> set[str]:
-    """The cache keys of every settled pile a ScoopGranular made with ``env_kwargs`` can draw (none settled): what a
-    recording or journal made by this code names; any other key was settled by other grains, lattice or solver."""
-    import robosuite  # the registry, at call time: this module is imported while ScoopGranular is being defined
-
-    kwargs = dict(env_kwargs, seed=0, has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False)
-    env = robosuite.make("ScoopGranular", **kwargs)
-    try:
-        return env.pile_keys()
-    finally:
-        env.close()
-
-
 class PileVariantsMixin:
     """ScoopGranular's piles: each food and grain count has ``pile_variants`` piles, settled once per machine."""
 

@@ -23,7 +23,6 @@ from veragmil_suite.data.schema import (
     seeds_used,
 )
 from veragmil_suite.data.writer import updated_file
-from veragmil_suite.environments.pile_variants import drawn_pile_keys
 from veragmil_suite.learning.observation_sets import WRENCH_OBSERVATIONS, needs_wrench
 from veragmil_suite.models.foods import (
     DEFAULT_PHYSICS,
@@ -51,6 +50,7 @@ def _recorded(path: Path) -> dict:
         first = f["data"][names[0]].attrs if names else {}
         tried = seeds_used(f)
         piles = {attr_text(f["data"][name].attrs.get("pile", "")) for name in names}
+        observed = {key: value.shape[1:] for key, value in f["data"][names[0]]["obs"].items()} if names else {}
         return dict(
             next_seed=max(tried) + 1 if tried else None,
             demos=len(names),
@@ -67,6 +67,7 @@ def _recorded(path: Path) -> dict:
             start=demo_start(f["data"].attrs),
             # the settled piles its demos name ("": recorded before demos named them, taken as they are)
             piles=piles - {""},
+            observed=observed,
             env_kwargs=kwargs,
         )
 
@@ -114,13 +115,46 @@ def check_recording(
     if differ:
         described = ", ".join(f"{k} {a!r} (asked: {b!r})" for k, (a, b) in differ.items())
         raise StageError(f"{path} was recorded with other settings: {described}; use another output directory")
-    if held["piles"] and (stale := held["piles"] - drawn_pile_keys(held["env_kwargs"])):
-        raise StageError(
-            f"{path} holds demos on {len(stale)} settled piles this code no longer draws (its grains, lattice, "
-            "settling or solver changed since they were recorded); move the file away to record them again, or use "
-            "another output directory"
-        )
+    if held["demos"]:
+        _check_made_by_this_code(path, held)
     return held
+
+
+def _check_made_by_this_code(path: Path, held: dict) -> None:
+    """
+    Refuses a recording that this code would not continue alike: demos on settled piles it no longer draws (another
+    grain model, lattice, settling or solver), or observed otherwise than it records (an observation added or
+    reshaped since); its demos and new ones could not be merged or trained on as one recording.
+
+    Raises:
+        StageError: [naming what differs]
+    """
+    import robosuite  # the registry of this process, ScoopGranular's included
+
+    from veragmil_suite.learning.robomimic_obs import observation
+
+    kwargs = dict(held["env_kwargs"], seed=0, has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False)
+    env = robosuite.make("ScoopGranular", **kwargs)
+    try:
+        drawn = env.pile_keys()
+        made = {key: value.shape for key, value in observation(env).items()}
+    finally:
+        env.close()
+    cameras = set(held["cameras"])
+    observed = {k: v for k, v in held["observed"].items() if k.rsplit("_", 1)[0] not in cameras}
+    why = []
+    if stale := held["piles"] - drawn:
+        why.append(f"on {len(stale)} settled piles this code no longer draws (its grains, lattice, settling or solver)")
+    if observed != made:
+        differ = sorted(
+            set(observed) ^ set(made) | {k for k in observed.keys() & made.keys() if observed[k] != made[k]}
+        )
+        why.append(f"observed otherwise than this code records ({', '.join(differ)})")
+    if why:
+        raise StageError(
+            f"{path} holds demos {' and '.join(why)}; move the file away to record them again, or use another "
+            "output directory"
+        )
 
 
 def record_food(
