@@ -5,6 +5,7 @@ of the merged file without its no-op steps.
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 from pathlib import Path
@@ -34,6 +35,7 @@ from veragmil_suite.models.foods import (
 )
 from veragmil_suite.study.logged_run import RECORDING_PROGRESS, LogProgress, run_logged_call
 from veragmil_suite.study.settings import FOOD_SEED_STRIDE, PipelineSettings, StageError
+from veragmil_suite.utils.canonical import canonical
 
 
 def food_seed(seed: int, food: str) -> int:
@@ -120,6 +122,23 @@ def check_recording(
     return held
 
 
+@functools.cache
+def _made_by_this_code(env_kwargs: str) -> tuple[frozenset[str], dict[str, tuple]]:
+    """The settled piles a recording with these env kwargs (canonical JSON) can start on and the shapes of the
+    observations it stores, without cameras: built once per process (a study checks each food's file twice)."""
+    import robosuite  # the registry of this process, ScoopGranular's included
+
+    from veragmil_suite.learning.robomimic_obs import observation
+
+    kwargs = json.loads(env_kwargs)
+    kwargs.update(seed=0, has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False)
+    env = robosuite.make("ScoopGranular", **kwargs)
+    try:
+        return frozenset(env.pile_keys()), {key: value.shape for key, value in observation(env).items()}
+    finally:
+        env.close()
+
+
 def _check_made_by_this_code(path: Path, held: dict) -> None:
     """
     Refuses a recording that this code would not continue alike: demos on settled piles it no longer draws (another
@@ -129,17 +148,7 @@ def _check_made_by_this_code(path: Path, held: dict) -> None:
     Raises:
         StageError: [naming what differs]
     """
-    import robosuite  # the registry of this process, ScoopGranular's included
-
-    from veragmil_suite.learning.robomimic_obs import observation
-
-    kwargs = dict(held["env_kwargs"], seed=0, has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False)
-    env = robosuite.make("ScoopGranular", **kwargs)
-    try:
-        drawn = env.pile_keys()
-        made = {key: value.shape for key, value in observation(env).items()}
-    finally:
-        env.close()
+    drawn, made = _made_by_this_code(canonical(held["env_kwargs"]))
     cameras = set(held["cameras"])
     observed = {k: v for k, v in held["observed"].items() if k.rsplit("_", 1)[0] not in cameras}
     why = []
