@@ -46,6 +46,9 @@ setup(
         "matplotlib>=3.7",
         # the exact sign test of paired comparisons (veragmil_suite.evaluation.reporting); robosuite requires it too
         "scipy>=1.10",
+        # a stopped study's stage processes and everything under them (veragmil_suite.utils.termination); robomimic
+        # requires it too
+        "psutil>=5.9",
         # Diffusion Policy's noise schedulers and EMA (veragmil_suite.learning.algos), as robomimic 0.5 uses them;
         # 0.36 is the newest that shares huggingface-hub (< 0.36) with lerobot-dataset 0.4.4 (extra lerobot)
         "diffusers==0.36.0",

@@ -137,9 +137,13 @@ def test_render_obs_reproduces_the_recording_and_renders_other_cameras(files, tm
                 )
                 # the last next_obs is simulated again, one step from the last state with the controllers aimed at
                 # it: round-off (the solver's warm start is not in a state), not the arm pulled elsewhere
-                # (before: 144 pixels off by up to 128 levels); images to a level, depth to 1e-5
-                last = [f[f"data/{name}/next_obs/{key}"][-1].astype(float) for f in (b, a)]
-                np.testing.assert_allclose(*last, rtol=0, atol=1.0 if key == "overhead_image" else 1e-5)
+                # (before: 144 pixels off by up to 128 levels): images to a few levels at a few pixels, depth to 1e-5
+                new, recorded = [f[f"data/{name}/next_obs/{key}"][-1].astype(float) for f in (b, a)]
+                off = np.abs(new - recorded)
+                if key == "overhead_image":
+                    assert off.max() <= 4 and (off > 1).mean() <= 0.005, (off.max(), (off > 1).sum())
+                else:
+                    assert off.max() <= 1e-5, off.max()
             for key in ("states", "actions", "obs/robot0_eef_pos", "obs/object"):
                 np.testing.assert_array_equal(b[f"data/{name}/{key}"][()], a[f"data/{name}/{key}"][()])
 

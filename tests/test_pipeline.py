@@ -1,5 +1,6 @@
 """veragmil-quickstart and veragmil-study: settings, the shortened configs, and the main job end to end (tiny)."""
 
+import contextlib
 import csv
 import json
 import os
@@ -672,3 +673,65 @@ def test_a_study_folder_copied_with_its_files_times_is_not_merged_again(tmp_path
     merge_profile_dataset(second / "spacemouse.hdf5", copied, [2])
     drop_noops_once(second / "spacemouse.hdf5", second / "spacemouse-no-noops.hdf5", said.append)
     assert said[-1].startswith("dropped")
+
+
+def _descendants(pid: int) -> set[int]:
+    """The processes under ``pid`` (Linux: /proc's children lists)."""
+    found: set[int] = set()
+    todo = [pid]
+    while todo:
+        parent = todo.pop()
+        for task in Path(f"/proc/{parent}/task").glob("*"):
+            try:
+                children = {int(c) for c in (task / "children").read_text().split()}
+            except OSError:
+                continue
+            todo += list(children - found)
+            found |= children
+    return found
+
+
+def _alive(pid: int) -> bool:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def test_a_terminated_study_takes_its_stage_processes_with_it(tmp_path):
+    """SIGTERM (kill, a scheduler's stop) is one line and 143, and the stage under way goes with the study: a
+    recorder left running would go on writing a file that the next run continues."""
+    out = tmp_path / "study"
+    args = [*CHEAP_STUDY, "--output-dir", out, "--demos-per-food", "2", "--episodes", "1"]
+    study = subprocess.Popen(
+        [str(BIN / "veragmil-study"), *map(str, args)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        stdin=subprocess.DEVNULL,
+        text=True,
+        env=dict(os.environ, MUJOCO_GL="osmesa"),
+        start_new_session=True,  # a study that does not stop is killed with everything it started
+    )
+    try:
+        log = out / "data" / "expert" / "pasta.seed3000.log"
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and not (log.exists() and log.stat().st_size):
+            time.sleep(0.1)
+        assert log.exists(), "the recording did not start"
+        # the recorder's worker pool under way: the recorder, its forkserver and its workers
+        while time.monotonic() < deadline and len(_descendants(study.pid)) < 4:
+            time.sleep(0.1)
+        stage = _descendants(study.pid)
+        assert len(stage) >= 4, stage
+        study.send_signal(signal.SIGTERM)
+        _, stderr = study.communicate(timeout=120)
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and any(map(_alive, stage)):
+            time.sleep(0.1)
+        assert not [pid for pid in stage if _alive(pid)]
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(study.pid, signal.SIGKILL)
+    assert study.returncode == 128 + signal.SIGTERM
+    assert [line for line in stderr.splitlines() if line.strip()][-1] == "veragmil-study: terminated"
+    assert "Traceback" not in stderr

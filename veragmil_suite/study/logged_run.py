@@ -19,6 +19,7 @@ from tqdm import tqdm
 
 from veragmil_suite.study.settings import StageError
 from veragmil_suite.utils.rendering import use_headless_rendering
+from veragmil_suite.utils.termination import sigterm_raises, stop_tree
 
 
 @dataclass(frozen=True)
@@ -57,8 +58,8 @@ def run_logged(
     ):
         try:
             code = child.wait() if progress is None else _follow(child.poll, log_path, progress)
-        except BaseException:  # interrupted: the child goes too, as subprocess.call would see to
-            child.kill()
+        except BaseException:  # interrupted (Ctrl-C, SIGTERM): the stage goes too
+            stop_tree(child.pid)
             raise
     _check_exit(code, log_path, what)
     return time.perf_counter() - start
@@ -84,8 +85,8 @@ def run_logged_call(
         if progress is not None:
             _follow(lambda: child.exitcode, log_path, progress)
         child.join()
-    except BaseException:  # interrupted: the child goes too
-        child.kill()
+    except BaseException:  # interrupted (Ctrl-C, SIGTERM): the stage goes too
+        stop_tree(child.pid)
         child.join()
         raise
     _check_exit(child.exitcode, log_path, what)
@@ -128,7 +129,8 @@ def _logged_call(function: Callable[..., object], kwargs: dict, log_path: str) -
     sys.stdout.reconfigure(line_buffering=True)
     sys.stderr.reconfigure(line_buffering=True)
     try:
-        function(**kwargs)
+        with sigterm_raises():  # stopped by the study (stop_tree): unwinds, its pools and writes closed
+            function(**kwargs)
     except BaseException:
         traceback.print_exc()
         sys.stdout.flush()

@@ -1,5 +1,5 @@
 """The handler every console program runs under: an expected error is one line on stderr and exit status 2, Ctrl-C one
-line and 130 (the shell's status for an interrupted program).
+line and 130 (the shell's status for an interrupted program), SIGTERM one line and 143 after the same clean-up.
 """
 
 from __future__ import annotations
@@ -8,12 +8,14 @@ import argparse
 import errno
 import functools
 import os
+import signal
 import sys
 from collections.abc import Callable
 from typing import Any
 
 from veragmil_suite.utils.cli.files import one_line
 from veragmil_suite.utils.cli.kinds import Kind, count, non_negative
+from veragmil_suite.utils.termination import Terminated, sigterm_raises
 
 
 class UsageError(Exception):
@@ -88,8 +90,9 @@ def command(build_parser: Callable[[], argparse.ArgumentParser], interrupted: st
     a value argparse refused): parses ``argv`` with ``build_parser()`` (kept as ``main.build_parser`` for
     tests/test_cli.py), runs, and turns an expected error
     (UsageError, our dataset and Ray errors, an OSError about the user's files, disk or addresses, a malformed
-    ENVIRONMENT_SETTINGS value) into one line on stderr and exit status 2, and Ctrl-C into one line
-    (``interrupted``) and 130.
+    ENVIRONMENT_SETTINGS value) into one line on stderr and exit status 2, Ctrl-C into one line (``interrupted``)
+    and 130, and SIGTERM, raised as Terminated so that what the program started and holds is let go as on Ctrl-C,
+    into one line and 143.
     """
 
     def decorate(run: Callable[[argparse.Namespace], int | None]) -> Callable[[list[str] | None], int]:
@@ -102,10 +105,14 @@ def command(build_parser: Callable[[], argparse.ArgumentParser], interrupted: st
                 return stop.code if isinstance(stop.code, int) else (0 if stop.code is None else 2)
             try:
                 check_environment()
-                return int(run(args) or 0)
+                with sigterm_raises():
+                    return int(run(args) or 0)
             except KeyboardInterrupt:
                 print(f"\n{parser.prog}: {interrupted}", file=sys.stderr)
                 return 130
+            except Terminated:
+                print(f"\n{parser.prog}: terminated", file=sys.stderr)
+                return 128 + signal.SIGTERM
             except Exception as error:
                 if not _expected(error):
                     raise
