@@ -401,9 +401,9 @@ def record_scripted(
     """
     Records ``episodes`` demos of the scripted operator ``profile`` into ``output`` (``recording_env_kwargs``), at
     most ``max_attempts`` attempts (default 3 x episodes + 2), in this process, in ``processes`` worker processes or
-    on the Ray cluster at ``ray``: what ``veragmil-collect --device scripted`` runs, and the study's recording stage.
-    Attempt k runs with seed ``seed`` + k (default: after the file's last attempt), so the file is the same for any
-    number of processes.
+    on the Ray cluster at ``ray`` (one demo is recorded here: a pool gains nothing on it): what ``veragmil-collect
+    --device scripted`` runs, and the study's recording stage. Attempt k runs with seed ``seed`` + k (default: after
+    the file's last attempt), so the file is the same for any number of processes.
 
     Raises:
         DatasetError: [``output`` cannot be appended to]
@@ -417,7 +417,8 @@ def record_scripted(
         # the piles for them
         env = robosuite.make("ScoopGranular", **env_kwargs, has_renderer=False, seed=first)
         try:
-            if processes > 1 or ray is not None:
+            # one demo in a pool would start its workers and an attempt run ahead that is dropped once it succeeds
+            if min(processes, episodes) > 1 or ray is not None:
                 attempts = parallel_attempts(env, env_kwargs, profile, first, success_hold_s, processes, ray)
                 env = None
             else:

@@ -355,7 +355,7 @@ def _run_parallel(
         run_task,
         tasks,
         context=piles,
-        processes=processes,
+        processes=min(processes, len(tasks)),  # no worker started for nothing to do
         on_ray=on_ray,
         setup=init_worker,
         resources=Resources(cpus=1),
