@@ -269,6 +269,9 @@ def test_quickstart_end_to_end_records_trains_evaluates_and_prints_the_tables(tm
 
 CHEAP_STUDY = ["--profiles", "expert", "--algos", "bc", "--train-foods", "pasta", "--eval-foods", "pasta", "peas"]
 CHEAP_STUDY += ["--n-grains", "12", "--epochs", "2", "--steps-per-epoch", "5", "--horizon", "250"]
+# one evaluation worker and no recording pool: the tests run two at a time on two cores, and a second worker's start
+# would cost more than its episodes (the tests of parallel pieces ask for more)
+CHEAP_STUDY += ["--processes", "1"]
 
 
 @pytest.mark.xdist_group("studies")  # not beside test_ray.py's studies: each starts many processes
@@ -702,7 +705,7 @@ def test_a_terminated_study_takes_its_stage_processes_with_it(tmp_path):
     """SIGTERM (kill, a scheduler's stop) is one line and 143, and the stage under way goes with the study: a
     recorder left running would go on writing a file that the next run continues."""
     out = tmp_path / "study"
-    args = [*CHEAP_STUDY, "--output-dir", out, "--demos-per-food", "2", "--episodes", "1"]
+    args = [*CHEAP_STUDY, "--output-dir", out, "--demos-per-food", "2", "--episodes", "1", "--processes", "2"]
     study = subprocess.Popen(
         [str(BIN / "veragmil-study"), *map(str, args)],
         stdout=subprocess.PIPE,

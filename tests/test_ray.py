@@ -31,7 +31,7 @@ from veragmil_suite.utils.distributed import THIS_MACHINE, WorkerLost, ray_sessi
 pytestmark = pytest.mark.xdist_group("studies")
 
 # the smallest grid: one demo of pasta, 2 x 5 gradient steps, one episode of each agent on pasta
-GRID = [*CHEAP_STUDY, "--eval-foods", "pasta", "--demos-per-food", "1", "--episodes", "1"]
+GRID = [*CHEAP_STUDY, "--eval-foods", "pasta", "--demos-per-food", "1", "--episodes", "1", "--processes", "2"]
 # what an episode's outcome is: every column of episodes.csv but its wall time
 NOT_OUTCOME = ("wall_s",)
 SENTINEL_SPEED = 123.0
