@@ -12,9 +12,7 @@ def test_both_sides_run_their_own_checkout_and_the_ratio_is_printed(tmp_path):
     installed checkout, and each side's episodes are counted."""
     base = tmp_path / "base"
     for folder in ("veragmil_suite", "models", "configs"):
-        # with its bytecode (copied with the sources' times, so still valid): compiling the package again is no part
-        # of what is tested
-        shutil.copytree(ROOT / folder, base / folder, ignore=shutil.ignore_patterns("checkpoints"))
+        shutil.copytree(ROOT / folder, base / folder, ignore=shutil.ignore_patterns("__pycache__", "checkpoints"))
     args = ["--base", str(base), "--food", "pasta", "--n-grains", "12", "--episodes", "1", "--rounds", "1"]
     args += ["--lift-steps", "5"]
     out = run_script(SCRIPT, *args, "--sleep", "off", "--cache-root", tmp_path / "cache").stdout
