@@ -274,20 +274,26 @@ CHEAP_STUDY += ["--n-grains", "12", "--epochs", "2", "--steps-per-epoch", "5", "
 CHEAP_STUDY += ["--processes", "1"]
 
 
+def _start_study(args: list, output: int) -> subprocess.Popen:
+    """veragmil-study with ``args`` in a session of its own (to be killed with everything it started), its output
+    sent to ``output`` (subprocess.PIPE: read as text)."""
+    return subprocess.Popen(
+        [str(BIN / "veragmil-study"), *map(str, args)],
+        stdout=output,
+        stderr=output,
+        stdin=subprocess.DEVNULL,
+        text=True,
+        env=dict(os.environ, MUJOCO_GL="osmesa"),
+        start_new_session=True,
+    )
+
+
 @pytest.mark.xdist_group("studies")  # not beside test_ray.py's studies: each starts many processes
 def test_a_killed_study_resumes_and_skips_every_finished_piece(tmp_path):
     out = tmp_path / "study"
     args = [*CHEAP_STUDY, "--output-dir", out, "--demos-per-food", "1", "2", "--eval-steps", "5", "10"]
     args += ["--eval-foods", "pasta", "--episodes", "1"]
-    env = dict(os.environ, MUJOCO_GL="osmesa")
-    first = subprocess.Popen(
-        [str(BIN / "veragmil-study"), *map(str, args)],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-        stdin=subprocess.DEVNULL,
-        env=env,
-        start_new_session=True,
-    )
+    first = _start_study(args, subprocess.DEVNULL)
     journal = out / "eval" / "episodes.jsonl"
     deadline = time.monotonic() + 500
     while time.monotonic() < deadline and first.poll() is None:
@@ -706,15 +712,7 @@ def test_a_terminated_study_takes_its_stage_processes_with_it(tmp_path):
     recorder left running would go on writing a file that the next run continues."""
     out = tmp_path / "study"
     args = [*CHEAP_STUDY, "--output-dir", out, "--demos-per-food", "2", "--episodes", "1", "--processes", "2"]
-    study = subprocess.Popen(
-        [str(BIN / "veragmil-study"), *map(str, args)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        stdin=subprocess.DEVNULL,
-        text=True,
-        env=dict(os.environ, MUJOCO_GL="osmesa"),
-        start_new_session=True,  # a study that does not stop is killed with everything it started
-    )
+    study = _start_study(args, subprocess.PIPE)
     try:
         log = out / "data" / "expert" / "pasta.seed3000.log"
         deadline = time.monotonic() + 120
