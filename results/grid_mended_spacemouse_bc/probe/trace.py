@@ -1,6 +1,7 @@
 """One episode of a checkpoint traced every 10 control steps: stage, grains in the spoon and spilled, the spoon's
-offset from the desired post-scoop position (mm), and the action's norms (translation, rotation). Run from the
-repository root:
+offset from the desired post-scoop position (mm), the action's norms (translation, rotation), and (since session 64;
+rice_bowl0.txt predates it) the spoon's orientation error to the post-scoop pose (the norm of spoon_to_desired_rot,
+rad). Run from the repository root:
 python results/grid_mended_spacemouse_bc/probe/trace.py <checkpoint> <food> <episode>"""
 
 import sys
@@ -15,7 +16,10 @@ task = agents.EpisodeTask(
     horizon=400, env_kwargs={"physics": "calibrated"},
 )  # fmt: skip
 env, obs, act, step = agents._checkpoint_env(task)
-print("step | stage | in spoon | spilled | spoon - desired (mm: x, y, z) | |translation action| | |rotation action|")
+print(
+    "step | stage | in spoon | spilled | spoon - desired (mm: x, y, z) | |translation action| | |rotation action| | "
+    "orientation error (rad)"
+)
 for t in range(400):
     action = act(obs)
     obs, _, done, _ = step(action)
@@ -24,7 +28,8 @@ for t in range(400):
         offset = 1000 * np.asarray(obs["spoon_to_desired_pos"]).ravel()
         print(
             f"{t + 1} | {env.scoop_stage()} | {info['grains_in_spoon']} | {info['grains_spilled']} | "
-            f"{offset.round(0).tolist()} | {np.linalg.norm(action[:3]):.2f} | {np.linalg.norm(action[3:6]):.2f}"
+            f"{offset.round(0).tolist()} | {np.linalg.norm(action[:3]):.2f} | {np.linalg.norm(action[3:6]):.2f} | "
+            f"{np.linalg.norm(env._get_observations()['spoon_to_desired_rot']):.3f}"
         )
     if done:
         break
