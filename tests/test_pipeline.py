@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 
 import h5py
+import psutil
 import pytest
 from helpers.output import warning_lines
 from helpers.programs import BIN, run_program
@@ -684,26 +685,11 @@ def test_a_study_folder_copied_with_its_files_times_is_not_merged_again(tmp_path
     assert said[-1].startswith("dropped")
 
 
-def _descendants(pid: int) -> set[int]:
-    """The processes under ``pid`` (Linux: /proc's children lists)."""
-    found: set[int] = set()
-    todo = [pid]
-    while todo:
-        parent = todo.pop()
-        for task in Path(f"/proc/{parent}/task").glob("*"):
-            try:
-                children = {int(c) for c in (task / "children").read_text().split()}
-            except OSError:
-                continue
-            todo += list(children - found)
-            found |= children
-    return found
-
-
-def _alive(pid: int) -> bool:
+def _alive(process: psutil.Process) -> bool:
+    """Running, not a zombie, and not another process that took its pid since."""
     try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
-    except OSError:
+        return process.is_running() and process.status() != psutil.STATUS_ZOMBIE
+    except psutil.NoSuchProcess:
         return False
 
 
@@ -720,16 +706,16 @@ def test_a_terminated_study_takes_its_stage_processes_with_it(tmp_path):
             time.sleep(0.1)
         assert log.exists(), "the recording did not start"
         # the recorder's worker pool under way: the recorder, its forkserver and its workers
-        while time.monotonic() < deadline and len(_descendants(study.pid)) < 4:
+        while time.monotonic() < deadline and len(psutil.Process(study.pid).children(recursive=True)) < 4:
             time.sleep(0.1)
-        stage = _descendants(study.pid)
+        stage = psutil.Process(study.pid).children(recursive=True)
         assert len(stage) >= 4, stage
         study.send_signal(signal.SIGTERM)
         _, stderr = study.communicate(timeout=120)
         deadline = time.monotonic() + 30
         while time.monotonic() < deadline and any(map(_alive, stage)):
             time.sleep(0.1)
-        assert not [pid for pid in stage if _alive(pid)]
+        assert not [process for process in stage if _alive(process)]
     finally:
         with contextlib.suppress(ProcessLookupError):
             os.killpg(study.pid, signal.SIGKILL)
