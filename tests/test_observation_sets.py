@@ -59,7 +59,8 @@ def test_a_config_takes_a_sets_low_dim_keys_and_an_unknown_set_is_named():
     assert out == {"low_dim": list(OBSERVATION_SETS["no-load"]), "rgb": ["overhead_image"]}
     with pytest.raises(
         ValueError,
-        match=r"unknown observation set 'counts'; accepted: \['no-load', 'no-load-rot', 'object', 'wrench'\]",
+        match=r"unknown observation set 'counts'; accepted: "
+        r"\['no-load', 'no-load-rot', 'no-load-size', 'object', 'wrench'\]",
     ):
         check_observation_set("counts")
 
@@ -105,3 +106,26 @@ def test_the_orientation_error_turns_the_spoon_into_the_post_scoop_orientation_a
     np.testing.assert_allclose(rotation_to_post_scoop(POST_SCOOP_EEF_ROT), 0.0, atol=1e-9)
     flipped = T.quat2mat(np.array([0.0, 0.0, 1.0, 0.0])) @ POST_SCOOP_EEF_ROT
     assert np.linalg.norm(rotation_to_post_scoop(flipped)) == pytest.approx(np.pi, abs=1e-6)
+
+
+def test_the_piece_size_is_the_piles_largest_piece_and_follows_a_loaded_pile_of_another_food(env):
+    """piece_size: the largest piece's length and thickness, what a camera sees of the food (the scripted operator's
+    reach into the pile depends on it); another food's saved scene loaded into the environment brings its size."""
+    keys = OBSERVATION_SETS["no-load-size"]
+    assert keys == OBSERVATION_SETS["no-load"] + ("piece_size",) and "piece_size" not in PRIVILEGED_OBSERVATIONS
+    size = robomimic_obs.observation(env)["piece_size"]
+    assert size.shape == (2,) and env._observables["piece_size"].modality != "object"
+    assert size[0] == pytest.approx(2 * env.grain_pile.radii.max()) and size[0] > size[1] > 0
+    assert 0.015 < size[0] < 0.04  # a piece of pasta (macaroni, penne): 2-3.5 cm long
+    rice = robosuite.make(
+        "ScoopGranular", robots="XArm7", food="rice", n_grains=12, pile_variants=1, has_renderer=False,
+        has_offscreen_renderer=False, use_camera_obs=False,
+    )  # fmt: skip
+    rice.reset(seed=0)
+    rice_size = robomimic_obs.observation(rice)["piece_size"]
+    assert rice_size[0] < 0.5 * size[0]
+    rice.reset_from_xml_string(env.sim.model.get_xml())
+    rice.sim.set_state_from_flattened(env.sim.get_state().flatten())
+    rice.sim.forward()
+    np.testing.assert_allclose(robomimic_obs.observation(rice)["piece_size"], size, rtol=1e-5)
+    rice.close()

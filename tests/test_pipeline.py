@@ -141,7 +141,8 @@ def test_observation_sets_name_their_runs_and_columns_and_the_object_set_keeps_i
     assert config["observation"]["modalities"]["obs"]["low_dim"] == list(OBSERVATION_SETS["no-load"])
     with pytest.raises(
         ValueError,
-        match=r"unknown observation set 'counts'; accepted: \['no-load', 'no-load-rot', 'object', 'wrench'\]",
+        match=r"unknown observation set 'counts'; accepted: "
+        r"\['no-load', 'no-load-rot', 'no-load-size', 'object', 'wrench'\]",
     ):
         PipelineSettings(**grid, obs_sets=["counts"])
 

@@ -35,7 +35,7 @@ ROBOT_KEYS = {
 }
 OBJECT_KEYS = {"desired_pose": (7,), "bowl_pos": (3,), "spoon_to_desired_pos": (3,), "spoon_load": (2,)}
 # the task's observables outside ``object`` (a modality of their own)
-GOAL_KEYS = {"spoon_to_desired_rot": (3,)}
+GOAL_KEYS = {"spoon_to_desired_rot": (3,), "piece_size": (2,)}
 CAMERA_KEYS = {
     "overhead_image": ((CAMERA_SIZE, CAMERA_SIZE, 3), np.uint8),
     "overhead_depth": ((CAMERA_SIZE, CAMERA_SIZE, 1), np.float32),

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import warnings
+from collections.abc import Iterator
 
 import mujoco
 import numpy as np
@@ -380,6 +382,8 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
         else:
             self.min_portion_m3 = self.min_portion_fraction * self.food_volume_m3
         self.grain_radius_max = float(self.grain_pile.radii.max())
+        # the largest piece's length and thickness (m): what a camera over the bowl sees of the food
+        self.piece_size_m = 2.0 * np.array([self.grain_radius_max, self.grain_pile.thickness_radii.max()])
 
     def _reset_internal(self):
         """
@@ -540,3 +544,22 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
                     part.update(force=True)
             controller.update_state()
             controller.reset()
+
+
+# what headless() sets whatever the kwargs: environments that differ only here draw the same piles
+HEADLESS = dict(seed=0, has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False)
+
+
+@contextlib.contextmanager
+def headless(env_kwargs: dict) -> Iterator[ScoopGranular]:
+    """
+    A ScoopGranular of these kwargs (seed 0, no renderer, no cameras), closed after: the same piles to draw and the
+    same low-dim observations as any environment of these kwargs, for checking what stored episodes and demos name.
+    """
+    import robosuite  # the registry of this process, ScoopGranular's included
+
+    env = robosuite.make("ScoopGranular", **{**env_kwargs, **HEADLESS})
+    try:
+        yield env
+    finally:
+        env.close()

@@ -308,9 +308,14 @@ class TaskStateMixin:
             def spoon_to_desired_rot(obs_cache):
                 return rotation_to_post_scoop(self.sim.data.site_xmat[self.eef_site_id])
 
-            observables["spoon_to_desired_rot"] = Observable(
-                name="spoon_to_desired_rot", sensor=spoon_to_desired_rot, sampling_rate=self.control_freq
-            )
+            # the food's piece size, which a camera over the bowl sees (its identity and physics stay unobserved):
+            # where a scoop can reach before large pieces go over the rim depends on it
+            @sensor(modality="goal")
+            def piece_size(obs_cache):
+                return self.piece_size_m.copy()
+
+            for s in (spoon_to_desired_rot, piece_size):
+                observables[s.__name__] = Observable(name=s.__name__, sensor=s, sampling_rate=self.control_freq)
 
         return observables
 

@@ -34,7 +34,7 @@ from veragmil_suite.data.schema import VARIANTS_KEY, attr_text, demo_names, open
 from veragmil_suite.devices.expert import PROFILES, ScriptedScooper
 from veragmil_suite.environments import settling
 from veragmil_suite.environments.episode import SUCCESS_HOLD_S, run_until_done
-from veragmil_suite.environments.scoop import ScoopGranular
+from veragmil_suite.environments.scoop import HEADLESS, ScoopGranular, headless
 from veragmil_suite.environments.task_state import DEFAULT_SPILL_LIMIT
 from veragmil_suite.learning import robomimic_compat
 from veragmil_suite.learning.checkpoints import read_checkpoint, with_rnn_horizon
@@ -387,14 +387,10 @@ def _task_environments(tasks: list[EpisodeTask]):
                 EXPERT_KWARGS if task.spec.kind == "expert" else checkpoint_base_kwargs(env_metadata(target))
             )
         kwargs = _env_kwargs(task, bases[target])
-        kwargs.update(seed=0, has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False)
-        groups.setdefault(canonical(kwargs), (kwargs, []))[1].append(task)
+        groups.setdefault(canonical({**kwargs, **HEADLESS}), (kwargs, []))[1].append(task)
     for kwargs, group in groups.values():
-        env = robosuite.make("ScoopGranular", **kwargs)
-        try:
+        with headless(kwargs) as env:
             yield group, env
-        finally:
-            env.close()
 
 
 def env_metadata(path: str) -> dict:

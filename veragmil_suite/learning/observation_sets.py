@@ -15,6 +15,10 @@ physical parameters are privileged: no real robot observes them.
 - ``no-load-rot``: ``no-load`` and ``spoon_to_desired_rot``, the turn from the spoon's orientation to the post-scoop
   one (axis times angle, world frame; modality "goal", outside ``object``): the orientation twin of
   ``spoon_to_desired_pos``, in the frame of the OSC's rotation actions. Data recorded before it existed lacks it.
+- ``no-load-size``: ``no-load`` and ``piece_size``, the largest piece's length and thickness (m; modality "goal"),
+  which a camera over the bowl sees: how far a scoop may reach before large pieces go over the rim depends on it,
+  and without it a policy trained on rice and pasta reaches as far in pasta as in rice. Data recorded before it
+  existed lacks it.
 - ``wrench``: ``no-load`` and the wrist force-torque sensor (``robot0_eef_force``, ``robot0_eef_torque``): the spoon's
   weight and its contacts with grains and bowl, the sense a real robot has of what the grain counts say. The sensor
   reads the torques applied in a step, not the state alone: ScoopGranular observes it only with
@@ -35,6 +39,7 @@ OBSERVATION_SETS: dict[str, tuple[str, ...]] = {
     "object": ("robot0_eef_pos", "robot0_eef_quat", "object"),
     "no-load": NO_LOAD,
     "no-load-rot": NO_LOAD + ("spoon_to_desired_rot",),
+    "no-load-size": NO_LOAD + ("piece_size",),
     "wrench": NO_LOAD + WRENCH_OBSERVATIONS,
 }
 # the set of the low-dim configs in configs/json (tests/test_configs.py holds them to it): BC scored as well without

@@ -126,17 +126,11 @@ def check_recording(
 def _made_by_this_code(env_kwargs: str) -> tuple[frozenset[str], dict[str, tuple]]:
     """The settled piles a recording with these env kwargs (canonical JSON) can start on and the shapes of the
     observations it stores, without cameras: built once per process (a study checks each food's file twice)."""
-    import robosuite  # the registry of this process, ScoopGranular's included
-
+    from veragmil_suite.environments.scoop import headless
     from veragmil_suite.learning.robomimic_obs import observation
 
-    kwargs = json.loads(env_kwargs)
-    kwargs.update(seed=0, has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False)
-    env = robosuite.make("ScoopGranular", **kwargs)
-    try:
+    with headless(json.loads(env_kwargs)) as env:
         return frozenset(env.pile_keys()), {key: value.shape for key, value in observation(env).items()}
-    finally:
-        env.close()
 
 
 def _check_made_by_this_code(path: Path, held: dict) -> None:

@@ -1,8 +1,8 @@
 """One episode of a checkpoint traced every 10 control steps: stage, grains in the spoon and spilled, the spoon's
 offset from the desired post-scoop position (mm), the action's norms (translation, rotation), and (since session 64;
 rice_bowl0.txt predates it) the spoon's orientation error to the post-scoop pose (the norm of spoon_to_desired_rot,
-rad). Run from the repository root:
-python results/grid_mended_spacemouse_bc/probe/trace.py <checkpoint> <food> <episode>"""
+rad). <agent> is a checkpoint or "expert" (the scripted operator). Run from the repository root:
+python results/grid_mended_spacemouse_bc/probe/trace.py <agent> <food> <episode>"""
 
 import sys
 
@@ -15,7 +15,8 @@ task = agents.EpisodeTask(
     agent="probe", spec=agents.parse_spec(checkpoint), food=food, episode=episode, seed=100000 + episode,
     horizon=400, env_kwargs={"physics": "calibrated"},
 )  # fmt: skip
-env, obs, act, step = agents._checkpoint_env(task)
+make = agents._expert_env if task.spec.kind == "expert" else agents._checkpoint_env
+env, obs, act, step = make(task)
 print(
     "step | stage | in spoon | spilled | spoon - desired (mm: x, y, z) | |translation action| | |rotation action| | "
     "orientation error (rad)"
