@@ -446,6 +446,20 @@ def test_the_handler_turns_an_expected_error_into_one_line_and_exit_2(error, lin
     assert capsys.readouterr().err.splitlines() == [line]
 
 
+def test_output_to_a_reader_that_went_away_ends_quietly_with_sigpipes_status():
+    """``veragmil-dataset-info file | head -1``: the reader closes the pipe before the program writes; no traceback,
+    no message at exit, status 141 (128 + SIGPIPE), as a shell tool."""
+    process = subprocess.Popen(
+        [str(BIN / "veragmil-dataset-info"), str(ROOT / "demos" / "scoop.hdf5")],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    process.stdout.close()  # before the program has imported what it needs to print anything
+    err = process.stderr.read().decode()
+    assert process.wait(timeout=120) == 141, err
+    assert "Traceback" not in err and "Broken pipe" not in err and "Exception ignored" not in err, err
+
+
 def test_the_handler_leaves_a_bug_its_traceback():
     def run(args):
         raise ZeroDivisionError("a bug")

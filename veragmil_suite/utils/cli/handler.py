@@ -92,7 +92,7 @@ def command(build_parser: Callable[[], argparse.ArgumentParser], interrupted: st
     (UsageError, our dataset and Ray errors, an OSError about the user's files, disk or addresses, a malformed
     ENVIRONMENT_SETTINGS value) into one line on stderr and exit status 2, Ctrl-C into one line (``interrupted``)
     and 130, and SIGTERM, raised as Terminated so that what the program started and holds is let go as on Ctrl-C,
-    into one line and 143.
+    into one line and 143; output whose reader has gone (``| head``) ends quietly with 141.
     """
 
     def decorate(run: Callable[[argparse.Namespace], int | None]) -> Callable[[list[str] | None], int]:
@@ -113,6 +113,11 @@ def command(build_parser: Callable[[], argparse.ArgumentParser], interrupted: st
             except Terminated:
                 print(f"\n{parser.prog}: terminated", file=sys.stderr)
                 return 128 + signal.SIGTERM
+            except BrokenPipeError:
+                # the reader of the output went away (``| head``): quiet, as a shell tool, with the status SIGPIPE
+                # gives one; what is left unflushed goes nowhere instead of failing again at exit
+                os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+                return 128 + signal.SIGPIPE
             except Exception as error:
                 if not _expected(error):
                     raise
