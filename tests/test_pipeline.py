@@ -56,8 +56,8 @@ def test_bad_settings_name_the_accepted_values(tmp_path):
         PipelineSettings(output_dir=str(tmp_path), demos_per_food=[0, 3])
     with pytest.raises(ValueError, match="checkpoint 'nowhere.pth' not found"):
         PipelineSettings(output_dir=str(tmp_path), agents={"old": "nowhere.pth"})
-    with pytest.raises(ValueError, match="agent name 'expert BC no-load obs' is taken by one of this run's own"):
-        PipelineSettings(output_dir=str(tmp_path), agents={"expert BC no-load obs": "expert:careful"})
+    with pytest.raises(ValueError, match="agent name 'expert BC no-load-size obs' is taken by one of this run's own"):
+        PipelineSettings(output_dir=str(tmp_path), agents={"expert BC no-load-size obs": "expert:careful"})
     assert PipelineSettings(output_dir=str(tmp_path), agents={"careful": "expert:careful"}).agents
     result = run_program("veragmil-study", "--output-dir", tmp_path / "s", "--algos", "gail", timeout=60, check=False)
     assert result.returncode == 2 and "argument --algos: unknown algorithm 'gail'; accepted: bc, " in result.stderr
@@ -76,10 +76,10 @@ def test_no_operators_leaves_the_scripted_operators_out_of_the_study():
     add_pipeline_arguments(parser, PipelineSettings(output_dir="runs/study"))
     argv = ["--output-dir", "runs/x", "--profiles", "expert", "expert-dart", "--algos", "bc"]
     assert settings_from_args(parser.parse_args(argv)).own_agents() == [
-        "expert operator", "expert-dart operator", "expert BC no-load obs", "expert-dart BC no-load obs"
+        "expert operator", "expert-dart operator", "expert BC no-load-size obs", "expert-dart BC no-load-size obs"
     ]  # fmt: skip
     without = settings_from_args(parser.parse_args([*argv, "--no-operators"]))
-    assert without.own_agents() == ["expert BC no-load obs", "expert-dart BC no-load obs"]
+    assert without.own_agents() == ["expert BC no-load-size obs", "expert-dart BC no-load-size obs"]
 
 
 def test_every_setting_is_an_option_of_the_study_built_from_the_settings_alone():
@@ -111,13 +111,15 @@ def test_every_setting_is_an_option_of_the_study_built_from_the_settings_alone()
 def test_training_seeds_name_their_runs_and_columns_and_the_default_seed_keeps_its_old_name(tmp_path):
     grid = dict(output_dir=str(tmp_path), algos=["bc", "bcq"], seed=0)
     one = PipelineSettings(**grid)
-    assert one.train_seeds == [1] and one.run_name("expert", "bc", 30, 1) == "expert_bc_30demos_2000steps_obs-no-load"
-    assert one.own_agents() == ["expert operator", "expert BC no-load obs", "expert BCQ no-load obs"]
+    assert (
+        one.train_seeds == [1] and one.run_name("expert", "bc", 30, 1) == "expert_bc_30demos_2000steps_obs-no-load-size"
+    )
+    assert one.own_agents() == ["expert operator", "expert BC no-load-size obs", "expert BCQ no-load-size obs"]
     three = PipelineSettings(**grid, train_seeds=[1, 2, 3, 2], score_demonstrators=False)
     assert three.train_seeds == [1, 2, 3]
-    assert three.run_name("expert", "bcq", 30, 3) == "expert_bcq_30demos_2000steps_obs-no-load_seed3"
-    assert three.own_agents() == [f"expert {a} no-load obs seed {s}" for a in ("BC", "BCQ") for s in (1, 2, 3)]
-    assert three.model_label("expert", "bc", 30, 2000) == "expert BC no-load obs"  # the recipe, all its seeds
+    assert three.run_name("expert", "bcq", 30, 3) == "expert_bcq_30demos_2000steps_obs-no-load-size_seed3"
+    assert three.own_agents() == [f"expert {a} no-load-size obs seed {s}" for a in ("BC", "BCQ") for s in (1, 2, 3)]
+    assert three.model_label("expert", "bc", 30, 2000) == "expert BC no-load-size obs"  # the recipe, all its seeds
     with pytest.raises(ValueError, match=r"train_seeds must be integers >= 0 .* got \[-1\]"):
         PipelineSettings(**grid, train_seeds=[-1])
 
@@ -135,8 +137,8 @@ def test_observation_sets_name_their_runs_and_columns_and_the_object_set_keeps_i
     assert both.run_name("expert", "bc", 30, 1, "object") == "expert_bc_30demos_2000steps"
     assert both.run_name("expert", "bc", 30, 2, "no-load") == "expert_bc_30demos_2000steps_obs-no-load_seed2"
     default = PipelineSettings(**grid)  # the configs' own set: no grain counts
-    assert default.obs_sets == ["no-load"] and default.own_agents()[0] == "expert BC no-load obs"
-    assert default.run_name("expert", "bc", 30, 1) == "expert_bc_30demos_2000steps_obs-no-load"
+    assert default.obs_sets == ["no-load-size"] and default.own_agents()[0] == "expert BC no-load-size obs"
+    assert default.run_name("expert", "bc", 30, 1) == "expert_bc_30demos_2000steps_obs-no-load-size"
     config = training_config("bc", tmp_path / "d.hdf5", tmp_path / "runs", "x", 1, 1, obs_set="no-load")
     assert config["observation"]["modalities"]["obs"]["low_dim"] == list(OBSERVATION_SETS["no-load"])
     with pytest.raises(
@@ -152,7 +154,7 @@ def test_an_rnn_horizon_names_the_recurrent_models_columns_trains_the_same_runs_
     say it; a study without a recurrent algorithm refuses it (exit 2) before it writes anything."""
     grid = dict(output_dir=str(tmp_path), algos=["bc", "bc_rnn"], seed=0, score_demonstrators=False)
     every_20 = PipelineSettings(**grid, rnn_horizon=20)
-    assert every_20.own_agents() == ["expert BC no-load obs", "expert BC-RNN no-load obs rnn.horizon 20"]
+    assert every_20.own_agents() == ["expert BC no-load-size obs", "expert BC-RNN no-load-size obs rnn.horizon 20"]
     assert every_20.run_name("expert", "bc_rnn", 30, 1) == PipelineSettings(**grid).run_name("expert", "bc_rnn", 30, 1)
     assert ALGORITHMS["bc_rnn"].recurrent and not ALGORITHMS["bc"].recurrent
     with pytest.raises(ValueError, match=r"rnn_horizon applies to recurrent algorithms \(bc_rnn, bc_rnn_gmm\)"):
@@ -204,22 +206,22 @@ def test_an_algorithm_with_its_own_budget_is_evaluated_at_its_end_and_at_the_swe
     assert [settings.total_steps_of(a) for a in ("bc", "bc_rnn", "bcq")] == [50000, 20000, 50000]
     assert settings.steps_of("bc") == [50000] and settings.steps_of("bc_rnn") == [20000]
     assert settings.own_agents() == [
-        "expert operator", "expert BC no-load obs 50k steps", "expert BC-RNN no-load obs 20k steps",
-        "expert BCQ no-load obs 50k steps",
+        "expert operator", "expert BC no-load-size obs 50k steps", "expert BC-RNN no-load-size obs 20k steps",
+        "expert BCQ no-load-size obs 50k steps",
     ]  # fmt: skip
     curve = PipelineSettings(**grid, algo_epochs={"bc_rnn": 40}, eval_steps=[10000, 50000])
     assert curve.steps_of("bc") == [10000, 50000] and curve.steps_of("bc_rnn") == [10000, 20000]
     assert PipelineSettings(**grid).own_agents() == [
         "expert operator",
-        "expert BC no-load obs",
-        "expert BC-RNN no-load obs",
-        "expert BCQ no-load obs",
+        "expert BC no-load-size obs",
+        "expert BC-RNN no-load-size obs",
+        "expert BCQ no-load-size obs",
     ]
     longer = PipelineSettings(**grid, algo_epochs={"bcq": 200})  # more than epochs: its own end only
     assert longer.steps_of("bcq") == [100000] and longer.steps_of("bc") == [50000]
     assert longer.own_agents() == [
-        "expert operator", "expert BC no-load obs 50k steps", "expert BC-RNN no-load obs 50k steps",
-        "expert BCQ no-load obs 100k steps",
+        "expert operator", "expert BC no-load-size obs 50k steps", "expert BC-RNN no-load-size obs 50k steps",
+        "expert BCQ no-load-size obs 100k steps",
     ]  # fmt: skip
     with pytest.raises(ValueError, match=r"algo_epochs names unknown algorithm\(s\) \['gail'\]; accepted"):
         PipelineSettings(**grid, algo_epochs={"gail": 3})
@@ -245,18 +247,18 @@ def test_quickstart_end_to_end_records_trains_evaluates_and_prints_the_tables(tm
     with h5py.File(out / "data" / "expert.hdf5") as f:
         assert len(f["data"]) == 1
         assert json.loads(f["data"].attrs["env_args"])["env_kwargs"]["food"] == "pasta"
-    (checkpoint,) = (out / "runs").glob("expert_bc_1demos_10steps_obs-no-load/*/models/model_epoch_2.pth")
+    (checkpoint,) = (out / "runs").glob("expert_bc_1demos_10steps_obs-no-load-size/*/models/model_epoch_2.pth")
     summary = json.loads((out / "eval" / "results.json").read_text())
     agents = {e["agent"] for e in summary["episodes"]}
     assert agents == {
-        "expert BC no-load obs",
+        "expert BC no-load-size obs",
         "expert operator",
-        "pretrained BC no-load obs 50k",
+        "pretrained BC no-load-size obs 50k",
     }  # the shipped checkpoint beside
     assert {(e["agent"], e["food"]) for e in summary["episodes"]} == {(a, f) for a in agents for f in ("pasta", "peas")}
     for name in ("table.md", "table.csv", "episodes.csv", "success.png"):
         assert (out / "eval" / name).stat().st_size > 0
-    assert "expert BC no-load obs" in result.stdout and "peas" in result.stdout and "pasta" in result.stdout
+    assert "expert BC no-load-size obs" in result.stdout and "peas" in result.stdout and "pasta" in result.stdout
     stages = (out / "eval" / "stages.md").read_text()
     # the expert's one episode has its row (whether a 12-grain pasta scoop succeeds on one seed is a property of
     # the CPU: the same seed held on one host and scooped nothing on another; measure_expert measures the expert)
@@ -264,7 +266,7 @@ def test_quickstart_end_to_end_records_trains_evaluates_and_prints_the_tables(tm
     # its stages, a progress bar for each, the tables, and nothing else
     assert not warning_lines((result.stdout + result.stderr).splitlines())
     bars = result.stderr.replace("\r", "\n")
-    for bar in ("expert pasta: 100%", "expert_bc_1demos_10steps_obs-no-load: 100%", "episodes: 100%"):
+    for bar in ("expert pasta: 100%", "expert_bc_1demos_10steps_obs-no-load-size: 100%", "episodes: 100%"):
         assert bar in bars, bars[-2000:]
     assert not [line for line in result.stdout.splitlines() if not QUICKSTART_LINES.fullmatch(line)], result.stdout
 
@@ -317,17 +319,17 @@ def test_a_killed_study_resumes_and_skips_every_finished_piece(tmp_path):
     said = again.stdout
     assert "skipping recording expert pasta" in said
     for demos in (1, 2):
-        assert f"skipping training expert_bc_{demos}demos_10steps_obs-no-load" in said
+        assert f"skipping training expert_bc_{demos}demos_10steps_obs-no-load-size" in said
     assert f"skipping {journaled} evaluation episodes" in said
     assert sorted((out / "runs").glob("expert_bc_*/*/models/*.pth")) == checkpoints  # not trained again
     results = json.loads((out / "eval" / "results.json").read_text())
     agents = {e["agent"] for e in results["episodes"]}
     assert agents == {
         "expert operator",
-        "expert BC no-load obs 1 demos 5 steps",
-        "expert BC no-load obs 1 demos 10 steps",
-        "expert BC no-load obs 2 demos 5 steps",
-        "expert BC no-load obs 2 demos 10 steps",
+        "expert BC no-load-size obs 1 demos 5 steps",
+        "expert BC no-load-size obs 1 demos 10 steps",
+        "expert BC no-load-size obs 2 demos 5 steps",
+        "expert BC no-load-size obs 2 demos 10 steps",
     }
     # every (agent, food, episode) exactly once: 5 agents x 1 food x 1 episode
     keys = [(e["agent"], e["food"], e["episode"]) for e in results["episodes"]]
@@ -350,7 +352,9 @@ def test_a_killed_study_resumes_and_skips_every_finished_piece(tmp_path):
     last_only = run_program(
         "veragmil-study", *args[: args.index("--eval-steps")], "--eval-foods", "pasta", "--episodes", "1", check=False
     )
-    assert last_only.returncode == 0 and "skipping training expert_bc_2demos_10steps_obs-no-load" in last_only.stdout
+    assert (
+        last_only.returncode == 0 and "skipping training expert_bc_2demos_10steps_obs-no-load-size" in last_only.stdout
+    )
     assert "skipping recording expert pasta" in last_only.stdout
     assert "skipping 3 evaluation episodes" in last_only.stdout  # operator and the two last checkpoints
     assert "; 0 to run" in last_only.stdout
@@ -359,19 +363,22 @@ def test_a_killed_study_resumes_and_skips_every_finished_piece(tmp_path):
     seeds = [*CHEAP_STUDY, "--output-dir", out, "--demos-per-food", "1", "--eval-foods", "pasta", "--episodes", "1"]
     two = run_program("veragmil-study", *seeds, "--train-seeds", "1", "2", "--no-operators", check=False)
     assert two.returncode == 0, two.stdout[-3000:] + two.stderr[-3000:]
-    assert "skipping training expert_bc_1demos_10steps_obs-no-load:" in two.stdout
-    assert len(list((out / "runs").glob("expert_bc_1demos_10steps_obs-no-load_seed2/*/models/model_epoch_2.pth"))) == 1
-    config = json.loads((out / "runs" / "expert_bc_1demos_10steps_obs-no-load_seed2.json").read_text())
+    assert "skipping training expert_bc_1demos_10steps_obs-no-load-size:" in two.stdout
+    assert (
+        len(list((out / "runs").glob("expert_bc_1demos_10steps_obs-no-load-size_seed2/*/models/model_epoch_2.pth")))
+        == 1
+    )
+    config = json.loads((out / "runs" / "expert_bc_1demos_10steps_obs-no-load-size_seed2.json").read_text())
     assert config["train"]["seed"] == 2
     assert "skipping 1 evaluation episodes" in two.stdout and "; 1 to run" in two.stdout
     with open(out / "eval" / "seeds.csv") as f:
         spread = {r["train_seed"]: float(r["seen success %"]) for r in csv.DictReader(f)}
     assert spread["mean"] == (spread["1"] + spread["2"]) / 2 and spread["lowest"] == min(spread["1"], spread["2"])
-    assert "| expert BC no-load obs | 1, 2 |" in (out / "eval" / "seeds.md").read_text()
+    assert "| expert BC no-load-size obs | 1, 2 |" in (out / "eval" / "seeds.md").read_text()
     # one demo count and no sweep: the learning curves of the runs before would describe other agents
     assert not (out / "eval" / "curves.csv").exists() and not (out / "eval" / "curves.png").exists()
     pooled = json.loads((out / "eval" / "seeds" / "results.json").read_text())
-    assert [(s["agent"], s["episodes"]) for s in pooled["summary"]] == [("expert BC no-load obs", 2)]
+    assert [(s["agent"], s["episodes"]) for s in pooled["summary"]] == [("expert BC no-load-size obs", 2)]
     # back to one seed: the seed tables of the run before would describe agents this run's table does not hold
     one = run_program("veragmil-study", *seeds, "--no-operators", check=False)
     assert one.returncode == 0 and "; 0 to run" in one.stdout
@@ -386,10 +393,12 @@ def test_a_study_refuses_to_mix_settings_in_one_folder_before_it_writes_anything
     out = tmp_path / "study"
     (out / "runs").mkdir(parents=True)
     args = [*CHEAP_STUDY, "--output-dir", out, "--demos-per-food", "1", "--episodes", "1"]
-    (out / "runs" / "expert_bc_1demos_10steps_obs-no-load.json").write_text(json.dumps({"another": "config"}))
+    (out / "runs" / "expert_bc_1demos_10steps_obs-no-load-size.json").write_text(json.dumps({"another": "config"}))
     before = _tree(out)
     result = run_program("veragmil-study", *args, check=False)
-    assert result.returncode == 1 and "holds another config for expert_bc_1demos_10steps_obs-no-load" in result.stderr
+    assert (
+        result.returncode == 1 and "holds another config for expert_bc_1demos_10steps_obs-no-load-size" in result.stderr
+    )
     assert _tree(out) == before and not (out / "data").exists()  # nothing recorded, merged or trained first
 
 
@@ -612,10 +621,10 @@ def test_a_study_with_drop_noops_trains_on_its_data_without_the_operators_pauses
         assert not any((b[f"data/{n}/actions"][()] == 0).all(axis=1).any() for n in b["data"])
         assert b["mask/first1"][()].tolist() == a["mask/first1"][()].tolist()
     assert f"dropped {zero} no-op steps of {before} from spacemouse.hdf5" in first.stdout
-    config = json.loads((out / "runs" / "spacemouse_bc_rnn_1demos_5steps_obs-no-load_no-noops.json").read_text())
+    config = json.loads((out / "runs" / "spacemouse_bc_rnn_1demos_5steps_obs-no-load-size_no-noops.json").read_text())
     assert config["train"]["data"] == str(cut) and config["algo"]["rnn"]["horizon"] == 10
     results = json.loads((out / "eval" / "results.json").read_text())
-    model = "spacemouse BC-RNN no-load obs no-noops rnn.horizon 3"
+    model = "spacemouse BC-RNN no-load-size obs no-noops rnn.horizon 3"
     assert {e["agent"] for e in results["episodes"]} == {model} and results["config"]["rnn_horizon"] == {model: 3}
 
 

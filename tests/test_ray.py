@@ -103,7 +103,7 @@ def test_a_study_on_ray_gives_the_tables_and_data_of_local_processes(grids):
     # the driver journaled each episode as its result came back from Ray (what a resumed study reads)
     journal = (on_ray / "eval" / "episodes.jsonl").read_text().splitlines()
     assert sorted(json.loads(line)["record"]["agent"] for line in journal) == [
-        "expert BC no-load obs",
+        "expert BC no-load-size obs",
         "expert operator",
     ]
     results = [json.loads((d / "eval" / "results.json").read_text()) for d in (local, on_ray)]

@@ -9,16 +9,15 @@ spoon and the grains spilled) and, with ``use_food_params_obs``, ``food_params``
 restitution and density); robosuite concatenates them, in that order, into ``object``. Grain counts and the food's
 physical parameters are privileged: no real robot observes them.
 
-- ``no-load`` (the low-dim configs' keys): what a real robot could have: its end-effector pose (proprioception), the
-  desired pose and the bowl's position (a camera finds the bowl) and the spoon's offset from the desired position
-  (the same two combined).
+- ``no-load``: what a real robot could have: its end-effector pose (proprioception), the desired pose and the
+  bowl's position (a camera finds the bowl) and the spoon's offset from the desired position (the same two combined).
 - ``no-load-rot``: ``no-load`` and ``spoon_to_desired_rot``, the turn from the spoon's orientation to the post-scoop
   one (axis times angle, world frame; modality "goal", outside ``object``): the orientation twin of
   ``spoon_to_desired_pos``, in the frame of the OSC's rotation actions. Data recorded before it existed lacks it.
-- ``no-load-size``: ``no-load`` and ``piece_size``, the largest piece's length and thickness (m; modality "goal"),
-  which a camera over the bowl sees: how far a scoop may reach before large pieces go over the rim depends on it,
-  and without it a policy trained on rice and pasta reaches as far in pasta as in rice. Data recorded before it
-  existed lacks it.
+- ``no-load-size`` (the low-dim configs' keys): ``no-load`` and ``piece_size``, the largest piece's length and
+  thickness (m; modality "goal"), which a camera over the bowl sees: how far a scoop may reach before large pieces go
+  over the rim depends on it, and without it a policy trained on rice and pasta reaches as far in pasta as in rice.
+  Data recorded before it existed lacks it.
 - ``wrench``: ``no-load`` and the wrist force-torque sensor (``robot0_eef_force``, ``robot0_eef_torque``): the spoon's
   weight and its contacts with grains and bowl, the sense a real robot has of what the grain counts say. The sensor
   reads the torques applied in a step, not the state alone: ScoopGranular observes it only with
@@ -43,8 +42,9 @@ OBSERVATION_SETS: dict[str, tuple[str, ...]] = {
     "wrench": NO_LOAD + WRENCH_OBSERVATIONS,
 }
 # the set of the low-dim configs in configs/json (tests/test_configs.py holds them to it): BC scored as well without
-# grain counts as with them (results/grid_calibrated_noload/)
-DEFAULT_OBSERVATION_SET = "no-load"
+# grain counts as with them (results/grid_calibrated_noload/), and better with the piece size than without
+# (results/grid_size_expert_bc/)
+DEFAULT_OBSERVATION_SET = "no-load-size"
 # the set every training run had before sets had names: its runs' folders carry no suffix, so those studies resume
 UNNAMED_RUNS_OBSERVATION_SET = "object"
 

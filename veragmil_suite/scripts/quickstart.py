@@ -20,8 +20,8 @@ from veragmil_suite.utils.cli.parser import Parser
 
 # BC trained by veragmil-study on 30 expert demos per training food for 50k gradient steps, with the configs'
 # observations (no grain counts), on the calibrated physics (models/checkpoints)
-PRETRAINED = "bc_no-load_expert_30demos_50k.pth"
-PRETRAINED_NAME = "pretrained BC no-load obs 50k"
+PRETRAINED = "bc_no-load-size_expert_30demos_50k.pth"
+PRETRAINED_NAME = "pretrained BC no-load-size obs 50k"
 
 
 def build_parser() -> Parser:
