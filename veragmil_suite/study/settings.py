@@ -180,8 +180,9 @@ class PipelineSettings:
     obs_sets: list[str] = setting(
         Option(
             "train each model once per low-dim observation set, named in its column (veragmil_suite.learning."
-            "observation_sets): object holds grain counts, no-load what a real robot could observe, wrench no-load "
-            "and the wrist's force-torque sensor",
+            "observation_sets): object holds grain counts, no-load what a real robot could observe, no-load-size "
+            "(the configs') no-load and the food's piece size, no-load-rot no-load and the turn to the post-scoop "
+            "orientation, wrench no-load and the wrist's force-torque sensor",
             cli.ListOf(cli.observation_set),
         ),
         factory=lambda: [DEFAULT_OBSERVATION_SET],
