@@ -460,6 +460,16 @@ def test_output_to_a_reader_that_went_away_ends_quietly_with_sigpipes_status():
     assert "Traceback" not in err and "Broken pipe" not in err and "Exception ignored" not in err, err
 
 
+def test_a_broken_pipe_that_is_not_the_output_keeps_its_traceback():
+    """A socket's peer gone (a Ray worker, a VR page) is a failure to show, not a reader of the output gone."""
+
+    def run(args):
+        raise BrokenPipeError(32, "Broken pipe")
+
+    with pytest.raises(BrokenPipeError):
+        cli.command(lambda: cli.Parser("prog"))(run)([])
+
+
 def test_the_handler_leaves_a_bug_its_traceback():
     def run(args):
         raise ZeroDivisionError("a bug")

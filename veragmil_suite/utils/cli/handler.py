@@ -8,6 +8,7 @@ import argparse
 import errno
 import functools
 import os
+import select
 import signal
 import sys
 from collections.abc import Callable
@@ -77,6 +78,16 @@ def _expected(error: BaseException) -> bool:
     return any(f"{c.__module__}.{c.__qualname__}" in EXPECTED_ERRORS for c in type(error).__mro__)
 
 
+def _stdout_reader_gone() -> bool:
+    """Whether standard output is a pipe whose reader has closed it (a broken socket elsewhere is not)."""
+    try:
+        poller = select.poll()
+        poller.register(sys.stdout.fileno(), select.POLLOUT)
+        return any(events & select.POLLERR for _, events in poller.poll(0))
+    except (OSError, ValueError, AttributeError):  # no file descriptor (captured output), or no poll()
+        return False
+
+
 def error_line(error: BaseException) -> str:
     """An expected error as one line: an OSError as 'PATH: reason', anything else as its message."""
     if isinstance(error, OSError) and error.filename is not None and error.strerror:
@@ -113,12 +124,12 @@ def command(build_parser: Callable[[], argparse.ArgumentParser], interrupted: st
             except Terminated:
                 print(f"\n{parser.prog}: terminated", file=sys.stderr)
                 return 128 + signal.SIGTERM
-            except BrokenPipeError:
-                # the reader of the output went away (``| head``): quiet, as a shell tool, with the status SIGPIPE
-                # gives one; what is left unflushed goes nowhere instead of failing again at exit
-                os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-                return 128 + signal.SIGPIPE
             except Exception as error:
+                if isinstance(error, BrokenPipeError) and _stdout_reader_gone():
+                    # the reader of the output went away (``| head``): quiet, as a shell tool, with the status
+                    # SIGPIPE gives one; what is left unflushed goes nowhere instead of failing again at exit
+                    os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+                    return 128 + signal.SIGPIPE
                 if not _expected(error):
                     raise
                 print(f"{parser.prog}: {error_line(error)}", file=sys.stderr)
