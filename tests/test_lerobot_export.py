@@ -55,7 +55,10 @@ def test_every_frame_reads_back_with_its_action_state_image_food_and_metrics(exp
                 dict(
                     action=d["actions"][()].astype(np.float32),
                     state=state.astype(np.float32),
-                    environment=obs["object"][()].astype(np.float32),
+                    # object, then the turn to the pose and the piece size (a policy needs the food's size)
+                    environment=np.concatenate(
+                        [obs[k][()] for k in ("object", "spoon_to_desired_rot", "piece_size")], axis=1
+                    ).astype(np.float32),
                     reward=d["rewards"][()].astype(np.float32),
                     done=d["dones"][()].astype(bool),
                     image=obs["overhead_image"][()].astype(np.float64),

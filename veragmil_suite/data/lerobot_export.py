@@ -8,7 +8,9 @@ Each demo becomes an episode, each step a frame, at the control rate:
     action                          the stored action (OSC_POSE deltas in [-1, 1]), float32
     observation.state               the robot's own sensing (joints, end effector, wrist force-torque): every
                                     ``robot0_*`` low-dim key, in name order, float32
-    observation.environment_state   robosuite's object-state (``object``: the task's bowl, spoon and target keys)
+    observation.environment_state   robosuite's object-state (``object``: the task's bowl, spoon and target keys),
+                                    then the task's observables outside it that the file holds (the turn to the
+                                    post-scoop pose, the piece size: observation_sets.GOAL_OBSERVABLES), float32
     observation.images.<camera>     each ``<camera>_image`` the file holds, as a video
     next.reward, next.done          the reward and done flag of the step
     episode.food, episode.<metric>  the demo's food and metrics (success, spilled pieces and volume, completion
@@ -36,6 +38,7 @@ from tqdm import tqdm
 
 from veragmil_suite.data.schema import METRIC_KEYS, DatasetError, demo_names, open_dataset
 from veragmil_suite.learning import robomimic_compat
+from veragmil_suite.learning.observation_sets import GOAL_OBSERVABLES
 
 STATE_PREFIX = "robot0_"
 ENVIRONMENT_STATE_KEY = "object"
@@ -85,7 +88,7 @@ class ExportLayout:
     """Which keys of the file go to which LeRobot features, read from the file's first exported demo."""
 
     state_keys: list[str]
-    environment_key: str | None
+    environment_keys: list[str]
     cameras: list[str]
     action_dim: int
     metric_dtypes: dict[str, str]
@@ -99,7 +102,7 @@ class ExportLayout:
         metrics = {k: METRIC_DTYPES[k] for k in METRIC_KEYS if k in demo.attrs}
         return cls(
             state_keys=state_keys,
-            environment_key=ENVIRONMENT_STATE_KEY if ENVIRONMENT_STATE_KEY in obs else None,
+            environment_keys=[k for k in (ENVIRONMENT_STATE_KEY, *GOAL_OBSERVABLES) if k in obs],
             cameras=cameras,
             action_dim=int(demo["actions"].shape[1]),
             metric_dtypes=metrics,
@@ -121,8 +124,8 @@ class ExportLayout:
             "next.done": dict(dtype="bool", shape=(1,), names=None),
             "episode.food": dict(dtype="string", shape=(1,), names=None),
         }
-        if self.environment_key is not None:
-            width = obs[self.environment_key].shape[1]
+        if self.environment_keys:
+            width = sum(obs[k].shape[1] for k in self.environment_keys)
             features["observation.environment_state"] = dict(dtype="float32", shape=(width,), names=None)
         for camera in self.cameras:
             features[f"observation.images.{camera}"] = dict(
@@ -136,7 +139,11 @@ class ExportLayout:
         """The demo's frames, as add_frame takes them."""
         obs = demo["obs"]
         state = np.concatenate([obs[k][()] for k in self.state_keys], axis=1).astype(np.float32)
-        environment = obs[self.environment_key][()].astype(np.float32) if self.environment_key else None
+        environment = (
+            np.concatenate([obs[k][()] for k in self.environment_keys], axis=1).astype(np.float32)
+            if self.environment_keys
+            else None
+        )
         actions = demo["actions"][()].astype(np.float32)
         rewards = demo["rewards"][()].astype(np.float32)
         dones = demo["dones"][()].astype(bool)

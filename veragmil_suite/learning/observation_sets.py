@@ -29,6 +29,8 @@ from __future__ import annotations
 
 # the observables robosuite concatenates into ``object`` (without use_food_params_obs), in order
 OBJECT_OBSERVABLES = ("desired_pose", "bowl_pos", "spoon_to_desired_pos", "spoon_load")
+# the task's observables outside ``object`` (modality "goal": added after datasets of ``object`` were recorded)
+GOAL_OBSERVABLES = ("spoon_to_desired_rot", "piece_size")
 # observations no real robot has: grain counts, the food's physical parameters, and ``object``, which holds the counts
 PRIVILEGED_OBSERVATIONS = ("spoon_load", "food_params", "object")
 
