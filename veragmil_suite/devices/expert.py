@@ -255,9 +255,9 @@ class ScriptedScooper:
         """Start a new episode: first phase, fresh noise, a new random plan (drawn from ``seed`` when given)."""
         if seed is not None:
             self.rng = np.random.default_rng(seed)
-        # the size of the food's pieces, as an operator sees it: how far a scoop may push them (read per episode:
-        # a reset may draw another pile variant)
-        self.piece_radius = float(np.max(self.env.grain_pile.radii))
+        # the size of the food's pieces, as an operator sees it (and the piece_size observation): how far a scoop
+        # may push them (read per episode: a reset may draw another pile variant)
+        self.piece_radius = self.env.grain_radius_max
         self.phase_index = 0
         self.phase_steps = 0
         self.hold_steps = 0

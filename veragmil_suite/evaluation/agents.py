@@ -290,11 +290,16 @@ def _checkpoint_env(task: EpisodeTask):
     return env.env, obs, lambda o: policy(ob=o), env.step
 
 
+def episode_env(task: EpisodeTask):
+    """A task's environment reset for its episode, its first observation, the agent's act(obs) and the env's step:
+    the scripted operator's or the checkpoint's (what run_episode runs; probes step it themselves)."""
+    return (_expert_env if task.spec.kind == "expert" else _checkpoint_env)(task)
+
+
 def run_episode(task: EpisodeTask) -> EpisodeRecord:
     """Runs one episode of a checkpoint or expert agent; returns its record."""
     start = time.perf_counter()
-    make = _expert_env if task.spec.kind == "expert" else _checkpoint_env
-    env, obs, act, step = make(task)
+    env, obs, act, step = episode_env(task)
     if env.food.name != task.food:
         raise RuntimeError(f"{task.agent}'s environment holds {env.food.name} where the task asked for {task.food}")
     frames = []

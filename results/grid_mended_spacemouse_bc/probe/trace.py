@@ -15,8 +15,7 @@ task = agents.EpisodeTask(
     agent="probe", spec=agents.parse_spec(checkpoint), food=food, episode=episode, seed=100000 + episode,
     horizon=400, env_kwargs={"physics": "calibrated"},
 )  # fmt: skip
-make = agents._expert_env if task.spec.kind == "expert" else agents._checkpoint_env
-env, obs, act, step = make(task)
+env, obs, act, step = agents.episode_env(task)
 print(
     "step | stage | in spoon | spilled | spoon - desired (mm: x, y, z) | |translation action| | |rotation action| | "
     "orientation error (rad)"

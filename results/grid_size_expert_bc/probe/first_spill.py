@@ -18,8 +18,7 @@ for episode in map(int, sys.argv[3:]):
         horizon=400,
         env_kwargs={"physics": "calibrated"},
     )
-    make = agents._expert_env if task.spec.kind == "expert" else agents._checkpoint_env
-    env, obs, act, step = make(task)
+    env, obs, act, step = agents.episode_env(task)
     first = None
     reached = None
     rel = []
