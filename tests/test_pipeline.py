@@ -8,6 +8,7 @@ import re
 import shutil
 import signal
 import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -534,6 +535,36 @@ def test_a_stage_called_as_a_function_logs_its_output_and_fails_with_the_tail_of
     assert dict(os.environ) == before
     with pytest.raises(StageError, match=r"(?s)failing stage failed \(exit 1\); log .*stage.log:.*before.*it broke"):
         run_logged_call(say_then, dict(lines=["before"], error="it broke"), log, "failing stage")
+
+
+def test_a_stage_signalled_as_it_exits_still_lets_go_of_its_semaphores(tmp_path):
+    """A SIGTERM that reaches a stage after its function (stop_tree's, as the stage ends on its own) does not cut
+    multiprocessing's exit clean-up short: otherwise its pools' semaphores leak, and the study's resource tracker
+    reports them on stderr after the study's last line."""
+    marker, log = tmp_path / "exiting", tmp_path / "stage.log"
+    script = (
+        "import sys; sys.path.insert(0, sys.argv[1])\n"
+        "from helpers.children import hold_a_semaphore_and_exit_slowly\n"
+        "from veragmil_suite.study.logged_run import run_logged_call\n"
+        "run_logged_call(hold_a_semaphore_and_exit_slowly, dict(marker=sys.argv[2]), sys.argv[3], 'stage')\n"
+    )
+    study = subprocess.Popen(
+        [sys.executable, "-c", script, str(Path(__file__).parent), str(marker), str(log)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and not marker.exists() and study.poll() is None:
+            time.sleep(0.02)
+        assert marker.exists(), "the stage did not reach its exit"
+        os.kill(int(marker.read_text()), signal.SIGTERM)
+        _, stderr = study.communicate(timeout=60)
+    finally:
+        study.kill()
+    assert study.returncode == 0, stderr[-2000:]
+    assert "leaked" not in stderr, stderr[-2000:]
 
 
 def test_a_shorter_recording_is_continued_to_the_demos_one_run_records(tmp_path):

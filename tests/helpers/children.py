@@ -18,3 +18,24 @@ def say_then(
         os.write(1, (c_line + "\n").encode())
     if error is not None:
         raise RuntimeError(error)
+
+
+_held = []  # kept to the child's exit: a semaphore collected earlier would be unlinked at once
+
+
+def hold_a_semaphore_and_exit_slowly(marker: str) -> None:
+    """Takes a named semaphore (registered with the resource tracker of the process that started this one), then
+    returns; at exit, before multiprocessing's clean-up unlinks the semaphore, writes ``marker`` (this process's id)
+    and waits, so that a test can signal it there."""
+    import multiprocessing
+    import multiprocessing.util
+    import time
+
+    def exit_slowly() -> None:
+        with open(marker + ".part", "w") as out:
+            out.write(str(os.getpid()))
+        os.replace(marker + ".part", marker)
+        time.sleep(3)
+
+    _held.append(multiprocessing.get_context("spawn").Lock())
+    multiprocessing.util.Finalize(None, exit_slowly, exitpriority=10)  # before the semaphore's (priority 0)

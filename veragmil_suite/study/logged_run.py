@@ -7,6 +7,7 @@ import contextlib
 import multiprocessing
 import os
 import re
+import signal
 import subprocess
 import sys
 import time
@@ -128,8 +129,12 @@ def _logged_call(function: Callable[..., object], kwargs: dict, log_path: str) -
         os.dup2(nothing.fileno(), 0)
     sys.stdout.reconfigure(line_buffering=True)
     sys.stderr.reconfigure(line_buffering=True)
+    # stopped by the study (stop_tree): the function unwinds, its pools and writes closed; a SIGTERM after it is
+    # ignored, or it would end the child before multiprocessing's exit clean-up unlinks its pools' semaphores,
+    # which the study's resource tracker then reports as leaked under the study's last line
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
     try:
-        with sigterm_raises():  # stopped by the study (stop_tree): unwinds, its pools and writes closed
+        with sigterm_raises():
             function(**kwargs)
     except BaseException:
         traceback.print_exc()

@@ -19,13 +19,15 @@ class Terminated(BaseException):
 
 
 def _raise_terminated(signum, frame) -> None:
+    # once: a second SIGTERM would break off the unwinding the first one started (a pool half closed)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
     raise Terminated
 
 
 @contextlib.contextmanager
 def sigterm_raises() -> Iterator[None]:
-    """SIGTERM raises Terminated in the block (in the main thread, where Python delivers signals; elsewhere as it
-    was); the handler before is put back after."""
+    """SIGTERM raises Terminated in the block, once (later ones are ignored while the block unwinds), in the main
+    thread, where Python delivers signals (elsewhere as it was); the handler before is put back after."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
