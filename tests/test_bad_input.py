@@ -131,7 +131,7 @@ CASES = [
     ("veragmil-study", ["--output-dir", "{tmp}/s", "--agent", "old=nowhere.pth"], "checkpoint 'nowhere.pth' not found"),
     ("veragmil-export-lerobot", ["{missing}", "--output-dir", "{tmp}/l"], "no such file"),
     ("veragmil-export-lerobot", [SAMPLE, "--output-dir", "{tmp}/l", "--filter-key", "caviar"],
-     "no filter key 'caviar' in "),
+     "has no filter key 'caviar'; its filter keys: "),
     ("veragmil-export-lerobot", [SAMPLE, "--output-dir", "{tmp}/l", "--vcodec", "mpeg2"], "mpeg2"),
     ("veragmil-bench", ["--foods", "caviar"], "caviar"),
     ("veragmil-bench", ["--steps", "0"], "argument --steps: must be a positive integer, got 0"),
@@ -200,9 +200,9 @@ def _run_and_check(program, argv, message, tmp_path, before, capsys):
     main = getattr(importlib.import_module(module), function)
     code = main(argv)
     out, err = capsys.readouterr()
-    # what the program said: argparse's usage block (first line "usage:", the rest indented) and robosuite's and
-    # robomimic's import warnings aside
-    warnings = ("usage:", " ", "[robosuite", "ROBOMIMIC WARNING(", ")")
+    # what the program said: robosuite's and robomimic's import warnings aside (argparse's usage block is not
+    # printed: one line)
+    warnings = (" ", "[robosuite", "ROBOMIMIC WARNING(", ")")
     said = [line for line in err.splitlines() if line.strip() and not line.startswith(warnings)]
     assert code == 2, f"exit {code}; stderr: {err[-2000:]}"
     assert "Traceback" not in err and "Traceback" not in out
@@ -241,3 +241,81 @@ def test_a_malformed_number_in_the_environment_gets_one_clear_line(name, value, 
     before = set(tmp_path.rglob("*"))
     config = ROOT / "configs" / "json" / "bc.json"
     _run_and_check("veragmil-train", ["--config", str(config), "--dataset", SAMPLE], message, tmp_path, before, capsys)
+
+
+CHECKPOINT = str(next((ROOT / "models" / "checkpoints").glob("*.pth")))
+EVALUATION = str(ROOT / "results" / "grid_size_expert_bc" / "results.json")
+# (program, arguments, what the one line must say) with an output that is there already, or is an input: {d} is a
+# folder holding data.hdf5 (the sample), link.hdf5 (a hard link to it), old.mp4, old.hdf5, a finished evaluation
+# (pool/results.json), a study (study/eval/results.json) and a published folder (published/RUN.md)
+POOLED = "a={d}/pool/results.json:expert BC no-load-size obs seed 1"
+OUTPUT_CASES = [
+    ("veragmil-replay", ["{d}/data.hdf5", "-o", "{d}/data.hdf5"], "not a video file name; accepted: .mp4"),
+    ("veragmil-replay", ["{d}/data.hdf5", "-o", "{d}/old.mp4"], "{d}/old.mp4 exists (use --force to overwrite it)"),
+    ("veragmil-robomimic-playback", ["--dataset", "{d}/data.hdf5", "--video_path", "{d}/data.hdf5"],
+     "not a video file name"),
+    ("veragmil-robomimic-playback", ["--dataset", "{d}/data.hdf5", "--video_path", "{d}/old.mp4", "--n", "1"],
+     "{d}/old.mp4 exists (use --force to overwrite it)"),
+    ("veragmil-robomimic-playback", ["--dataset", "{d}/data.hdf5", "--filter_key", "nosuch", "--video_path",
+     "{d}/new.mp4"], "has no filter key 'nosuch'; its filter keys: "),
+    ("veragmil-robomimic-dataset-info", ["--dataset", "{d}/data.hdf5", "--filter_key", "nosuch"],
+     "has no filter key 'nosuch'; its filter keys: "),
+    ("veragmil-robomimic-states-to-obs", ["--dataset", "{d}/data.hdf5", "--output_name", "data.hdf5", "--force"],
+     "--output-name {d}/data.hdf5 is also an input: write it to a new file"),
+    ("veragmil-robomimic-states-to-obs", ["--dataset", "{d}/data.hdf5", "--output_name", "link.hdf5", "--force"],
+     "is also an input"),
+    ("veragmil-robomimic-states-to-obs", ["--dataset", "{d}/data.hdf5", "--output_name", "old.hdf5"],
+     "{d}/old.hdf5 exists (use --force to overwrite it)"),
+    ("veragmil-run-agent", ["--agent", CHECKPOINT, "--n_rollouts", "1", "--dataset_path", "{d}/old.hdf5"],
+     "{d}/old.hdf5 exists (use --force to overwrite it)"),
+    ("veragmil-run-agent", ["--agent", CHECKPOINT, "--n_rollouts", "1", "--video_path", "{d}/old.mp4"],
+     "{d}/old.mp4 exists (use --force to overwrite it)"),
+    ("veragmil-drop-noops", ["{d}/data.hdf5", "-o", "{d}/link.hdf5", "--force"], "is also the input"),
+    ("veragmil-render-obs", ["{d}/data.hdf5", "-o", "{d}/link.hdf5", "--force"], "is also the input"),
+    ("veragmil-merge", ["{d}/data.hdf5", "{d}/old.hdf5", "-o", "{d}/link.hdf5", "--force"], "is also an input"),
+    ("veragmil-pool-results", ["{d}/pool", "--agent", POOLED],
+     "{d}/pool holds {d}/pool/results.json, which is pooled: write the pool to another folder"),
+    ("veragmil-pool-results", ["{d}/study/eval", "--agent", POOLED],
+     "{d}/study/eval/results.json exists (use --force to overwrite it)"),
+    ("veragmil-publish-results", ["{d}/study", "--output-dir", "{d}/study/eval", "--command", "c", "--force"],
+     "is the study's own evaluation folder"),
+    ("veragmil-publish-results", ["{d}/study", "--output-dir", "{d}/published", "--command", "c"],
+     "{d}/published/RUN.md exists (use --force to overwrite it)"),
+]  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def outputs_folder(tmp_path_factory) -> Path:
+    import shutil
+
+    folder = tmp_path_factory.mktemp("outputs")
+    shutil.copy(SAMPLE, folder / "data.hdf5")
+    (folder / "link.hdf5").hardlink_to(folder / "data.hdf5")
+    shutil.copy(SAMPLE, folder / "old.hdf5")
+    (folder / "old.mp4").write_bytes(b"an earlier video")
+    for where in ("pool", "study/eval"):
+        (folder / where).mkdir(parents=True)
+        shutil.copy(EVALUATION, folder / where / "results.json")
+    (folder / "published").mkdir()
+    (folder / "published" / "RUN.md").write_text("what an earlier publication wrote\n")
+    return folder
+
+
+def _contents(folder: Path) -> dict[str, str]:
+    import hashlib
+
+    return {str(p): hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+@pytest.mark.parametrize("program,args,message", OUTPUT_CASES, ids=[f"{c[0]}-{i}" for i, c in enumerate(OUTPUT_CASES)])
+def test_an_output_that_exists_or_is_an_input_is_refused_and_left_as_it_was(
+    program, args, message, outputs_folder, capsys
+):
+    """A program never writes over a file that is there without --force (a recording, a video, an evaluation, a
+    publication), nor over one of its own inputs even with it (a hard link is the same file): one line, exit 2."""
+    before = _contents(outputs_folder)
+    argv = [a.format(d=outputs_folder) for a in args]
+    _run_and_check(
+        program, argv, message.format(d=outputs_folder), outputs_folder, set(outputs_folder.rglob("*")), capsys
+    )
+    assert _contents(outputs_folder) == before

@@ -140,6 +140,8 @@ def bad_values(kind: cli.Kind, paths: dict[str, str]) -> list[tuple[str, str]]:
     if isinstance(kind, cli.OutputFile):
         cases = [("a directory", paths["folder"]), ("missing folder", paths["missing"])]
         cases += [("name too long", paths["too_long"])]
+        if kind.suffixes:
+            cases.append(("not a video name", paths["text"]))
         return cases + ([("read-only folder", paths["read_only"])] if paths["read_only"] else [])
     if isinstance(kind, cli.OutputFolder):
         cases = [("a file", paths["text"]), ("under a file", paths["text"] + "/sub")]

@@ -22,6 +22,7 @@ from veragmil_suite.data.schema import (
     demo_names,
     demo_start,
     env_kwargs_variants,
+    filter_key_demos,
     incompatible_kwargs,
     interrupted_writes,
     open_dataset,
@@ -31,6 +32,7 @@ from veragmil_suite.data.schema import (
     write_masks,
 )
 from veragmil_suite.data.writer import action_limit, demo_problems, updated_file, write_lock
+from veragmil_suite.utils.paths import same_file
 
 
 def dataset_summary(path: str | Path) -> dict:
@@ -167,7 +169,7 @@ def merge_datasets(inputs: list[str | Path], output: str | Path, valid_ratio: fl
             rate, cameras or observation keys]
     """
     output = Path(output)
-    if any(Path(i).resolve() == output.resolve() for i in inputs):
+    if any(same_file(i, output) for i in inputs):
         raise DatasetError(f"{output} is also an input: merge into a new file")
     first_meta, first_obs, attempts, sources = None, None, [], []
     with updated_file(output, new=True) as working:
@@ -265,7 +267,7 @@ def drop_noops(
         (demos kept, steps before, steps after, held no-op steps kept)
     """
     output = Path(output)
-    if Path(path).resolve() == output.resolve():
+    if same_file(path, output):
         raise DatasetError(f"{output} is also the input: write the copy to a new file")
     before = after = 0
     with open_dataset(path) as fin, updated_file(output, new=True) as working:
@@ -335,10 +337,7 @@ def split_dataset(path: str | Path, ratio: float, seed: int = 0, filter_key: str
         if filter_key is None:
             names, prefix = demo_names(f), ""
         else:
-            if "mask" not in f or filter_key not in f["mask"]:
-                have = ", ".join(f["mask"].keys()) if "mask" in f else "none"
-                raise DatasetError(f"{path} has no filter key {filter_key!r} (it has: {have})")
-            names, prefix = [n.decode() for n in f["mask"][filter_key][()]], filter_key + "_"
+            names, prefix = filter_key_demos(f, filter_key), filter_key + "_"
         train, valid = split_demos(names, ratio, seed)
         if "mask" not in f:
             write_masks(f)

@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from veragmil_suite.data.schema import METRIC_KEYS, DatasetError, demo_names, open_dataset
+from veragmil_suite.data.schema import METRIC_KEYS, DatasetError, demo_names, filter_key_demos, open_dataset
 from veragmil_suite.learning import robomimic_compat
 from veragmil_suite.learning.observation_sets import GOAL_OBSERVABLES
 
@@ -193,10 +193,7 @@ def _select(f, filter_key: str | None) -> list[str]:
     names = demo_names(f)
     if filter_key is None:
         return names
-    keys = sorted(f["mask"]) if "mask" in f else []
-    if filter_key not in keys:
-        raise DatasetError(f"no filter key {filter_key!r} in {f.filename}; filter keys: {', '.join(keys) or 'none'}")
-    keep = {x.decode() if isinstance(x, bytes) else str(x) for x in f["mask"][filter_key][()]}
+    keep = set(filter_key_demos(f, filter_key))
     return [n for n in names if n in keep]
 
 

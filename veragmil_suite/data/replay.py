@@ -16,6 +16,7 @@ from veragmil_suite.data.schema import (
     DatasetError,
     attr_text,
     demo_names,
+    filter_key_demos,
     open_dataset,
     write_masks,
 )
@@ -23,6 +24,7 @@ from veragmil_suite.data.writer import updated_file
 from veragmil_suite.learning import robomimic_obs
 from veragmil_suite.models.foods import with_recorded_physics
 from veragmil_suite.utils.canonical import canonical
+from veragmil_suite.utils.paths import same_file
 
 
 class DemoEnvs:
@@ -76,9 +78,7 @@ def _check_camera(env, camera: str) -> None:
 def _select_demos(f: h5py.File, demos: list[str] | None, n: int | None, filter_key: str | None = None) -> list[str]:
     names = demo_names(f)
     if filter_key:
-        if "mask" not in f or filter_key not in f["mask"]:
-            raise DatasetError(f"no filter key {filter_key!r}")
-        keep = {x.decode() for x in f["mask"][filter_key][()]}
+        keep = set(filter_key_demos(f, filter_key))
         names = [x for x in names if x in keep]
     if demos:
         missing = [d for d in demos if d not in names]
@@ -109,6 +109,8 @@ def replay_demos(
     """
     import imageio  # imageio takes ~80 ms to import: only when writing videos
 
+    if video is not None and same_file(path, video):
+        raise DatasetError(f"{video} is also the input: write the video to a new file")
     with open_dataset(path) as f:
         names = _select_demos(f, demos, n)
         envs = DemoEnvs(f, has_offscreen_renderer=video is not None, use_camera_obs=False)
@@ -167,8 +169,8 @@ def render_observations(
     next_obs of the last step comes from replaying the last action (as robomimic's dataset_states_to_obs does).
     """
     output = Path(output)
-    if Path(path).resolve() == output.resolve():
-        raise DatasetError("write the re-rendered dataset to a new file")
+    if same_file(path, output):
+        raise DatasetError(f"{output} is also the input: write the re-rendered dataset to a new file")
     overrides = dict(
         use_camera_obs=True,
         has_offscreen_renderer=True,

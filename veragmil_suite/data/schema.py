@@ -121,6 +121,19 @@ def demo_names(f: h5py.File) -> list[str]:
     return sorted(names, key=lambda n: int(n[len(DEMO_PREFIX) :]))
 
 
+def filter_key_demos(f: h5py.File, filter_key: str) -> list[str]:
+    """The demo names robomimic's filter key ``filter_key`` (``mask/<key>``) lists, in its order.
+
+    Raises:
+        DatasetError: [the file has no such filter key; the message lists those it has]
+    """
+    keys = sorted(f["mask"]) if isinstance(f.get("mask"), h5py.Group) else []
+    if filter_key not in keys:
+        have = ", ".join(keys) or "none"
+        raise DatasetError(f"{f.filename} has no filter key {filter_key!r}; its filter keys: {have}")
+    return [x.decode() if isinstance(x, bytes) else str(x) for x in f["mask"][filter_key][()]]
+
+
 def missing_observations(path: str | Path, keys: list[str]) -> list[str]:
     """Those of ``keys`` that some demo of the robomimic dataset at ``path`` holds no observations of (none when the
     file cannot be read: the dataset's own checks name that)."""

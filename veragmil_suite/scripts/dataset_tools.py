@@ -14,12 +14,11 @@ from __future__ import annotations
 
 import argparse
 import json
-from pathlib import Path
 
 from veragmil_suite.data.datasets import clean_dataset, dataset_summary, drop_noops, merge_datasets, split_dataset
 from veragmil_suite.data.replay import render_observations, replay_demos
 from veragmil_suite.utils import cli
-from veragmil_suite.utils.cli.handler import UsageError, command
+from veragmil_suite.utils.cli.handler import UsageError, command, refuse_existing
 from veragmil_suite.utils.cli.parser import Parser
 from veragmil_suite.utils.rendering import use_headless_rendering
 
@@ -121,11 +120,6 @@ def info_main(args: argparse.Namespace) -> int:
     return 0
 
 
-def _refuse_existing(path: str, force: bool) -> None:
-    if Path(path).exists() and not force:
-        raise UsageError(f"{path} exists (use --force to overwrite it)")
-
-
 def build_merge_parser() -> Parser:
     p = Parser(
         "veragmil-merge",
@@ -144,7 +138,7 @@ def build_merge_parser() -> Parser:
 @command(build_merge_parser)
 def merge_main(args: argparse.Namespace) -> int:
     """veragmil-merge: merge demonstration files into a new one."""
-    _refuse_existing(args.output, args.force)
+    refuse_existing(args.output, args.force)
     n = merge_datasets(args.inputs, args.output, args.valid_ratio)
     print(f"merged {n} demos from {len(args.inputs)} files into {args.output}")
     return 0
@@ -196,7 +190,7 @@ def build_replay_parser() -> Parser:
         aliases=["--video-path"],
         type=cli.output_video,
         default=None,
-        help="mp4 to write (all selected demos in sequence)",
+        help="video to write, all selected demos in sequence (must not exist unless --force)",
     )
     p.add_argument("--demos", type=cli.ListOf(cli.demo_name), default=None, help="demo names (default: all)")
     p.add_argument("--n", type=cli.count, default=None, help="only the first N selected demos")
@@ -205,6 +199,7 @@ def build_replay_parser() -> Parser:
     p.add_argument("--fps", type=cli.positive, default=None, help="video frame rate (default: real time)")
     p.add_argument("--video-skip", aliases=["--skip"], type=cli.count, default=1, help="render every k-th step")
     p.add_argument("--use-actions", action="store_true", help="replay actions open loop and report the state error")
+    p.add_argument("--force", action="store_true", help="overwrite --output")
     return p
 
 
@@ -213,6 +208,7 @@ def replay_main(args: argparse.Namespace) -> int:
     """veragmil-replay: replay demonstrations to a video."""
     if args.output is None and not args.use_actions:
         raise UsageError("give --output (a video) and/or --use-actions (a replay check)")
+    refuse_existing(args.output, args.force)
     use_headless_rendering()
     results = replay_demos(
         args.dataset,
@@ -266,7 +262,7 @@ def build_render_obs_parser() -> Parser:
 @command(build_render_obs_parser)
 def render_obs_main(args: argparse.Namespace) -> int:
     """veragmil-render-obs: re-render camera observations from the states."""
-    _refuse_existing(args.output, args.force)
+    refuse_existing(args.output, args.force)
     use_headless_rendering()
     height, width = args.camera_height, args.camera_width
     n = render_observations(args.dataset, args.output, args.camera_names, height, width, args.depth, args.demos)
@@ -302,7 +298,7 @@ def build_drop_noops_parser() -> Parser:
 @command(build_drop_noops_parser)
 def drop_noops_main(args: argparse.Namespace) -> int:
     """veragmil-drop-noops: copy a dataset without its no-op steps."""
-    _refuse_existing(args.output, args.force)
+    refuse_existing(args.output, args.force)
     demos, before, after, held = drop_noops(args.dataset, args.output, args.threshold, args.keep_held)
     dropped = before - after
     share = dropped / before if before else 0.0

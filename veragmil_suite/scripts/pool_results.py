@@ -35,6 +35,7 @@ from veragmil_suite.study.publish import pooled_timings
 from veragmil_suite.utils import cli
 from veragmil_suite.utils.cli.handler import UsageError, command
 from veragmil_suite.utils.cli.parser import Parser
+from veragmil_suite.utils.paths import same_file
 
 
 class PooledAgent(cli.Text):
@@ -76,11 +77,16 @@ def build_parser() -> Parser:
         metavar=("FIRST", "SECOND"),
         help="compare SECOND against FIRST episode by episode (pooled agents, or recipes seed by seed): paired.md",
     )
+    p.add_argument("--force", action="store_true", help="overwrite an evaluation OUTPUT_DIR already holds")
     return p
 
 
 @command(build_parser)
 def main(args: argparse.Namespace) -> int:
+    for _, source, _ in args.agent:
+        if same_file(source.parent, args.output_dir):
+            raise UsageError(f"{args.output_dir} holds {source}, which is pooled: write the pool to another folder")
+    cli.refuse_existing(str(Path(args.output_dir) / "results.json"), args.force)
     try:
         result, points = pool(args.agent)
         comparisons = [(a, b, paired_comparison(result, a, b, points)) for a, b in args.paired]

@@ -15,6 +15,7 @@ from veragmil_suite.study.publish import publish
 from veragmil_suite.utils import cli
 from veragmil_suite.utils.cli.handler import UsageError, command
 from veragmil_suite.utils.cli.parser import Parser
+from veragmil_suite.utils.paths import same_file
 
 
 def build_parser() -> Parser:
@@ -29,11 +30,16 @@ def build_parser() -> Parser:
         required=True,
         help="the exact command that made the study",
     )
+    p.add_argument("--force", action="store_true", help="overwrite what an earlier publication left in --output-dir")
     return p
 
 
 @command(build_parser)
 def main(args: argparse.Namespace) -> int:
+    source = Path(args.study_dir) / "eval"
+    if same_file(args.output_dir, source):
+        raise UsageError(f"--output-dir {args.output_dir} is the study's own evaluation folder: publish to another one")
+    cli.refuse_existing(str(Path(args.output_dir) / "RUN.md"), args.force)
     try:
         written = publish(Path(args.study_dir), Path(args.output_dir), args.command)
     except ValueError as e:

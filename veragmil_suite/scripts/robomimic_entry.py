@@ -22,11 +22,14 @@ import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from veragmil_suite.data.schema import missing_observations
+import h5py
+
+from veragmil_suite.data.schema import filter_key_demos, missing_observations
 from veragmil_suite.learning import robomimic_compat, robomimic_scripts, training_resume
 from veragmil_suite.learning.observation_sets import WRENCH_OBSERVATIONS
 from veragmil_suite.utils import cli
 from veragmil_suite.utils.cli.handler import UsageError
+from veragmil_suite.utils.paths import same_file
 
 SCRIPTS = {
     "train": "robomimic.scripts.train",
@@ -107,6 +110,14 @@ PROGRAMS = {
 }
 
 
+# the options naming a file a script writes (robomimic writes over it; ours refuse that unless --force)
+OUTPUTS = {
+    "robomimic.scripts.run_trained_agent": ("video_path", "dataset_path"),
+    "robomimic.scripts.playback_dataset": ("video_path",),
+    "robomimic.scripts.dataset_states_to_obs": ("output_name",),
+}
+
+
 def build_parser(module_name: str) -> cli.Parser:
     """robomimic's own parser of the script, with each option given its kind (PROGRAMS), adopted by our convention:
     robomimic's names, shown with dashes (--n-rollouts), robomimic's spelling (--n_rollouts) accepted as well."""
@@ -130,6 +141,9 @@ def build_parser(module_name: str) -> cli.Parser:
             help="go on with the newest run of this experiment that was stopped (same config), from the state it "
             "saved last (every $VERAGMIL_RESUME_EVERY_S seconds, default 120); a new run when there is none",
         )
+    if module_name in OUTPUTS:
+        written = ", ".join(_option(dest) for dest in OUTPUTS[module_name])
+        parser.add_argument("--force", action="store_true", help=f"overwrite {written} when it exists")
     return parser
 
 
@@ -163,8 +177,37 @@ def check_args(module_name: str, args: argparse.Namespace) -> None:
         if args.use_actions:
             raise UsageError("--use-obs plays stored observations, --use-actions replays actions: give one")
     if module_name == "robomimic.scripts.dataset_states_to_obs":
-        output = os.path.join(os.path.dirname(args.dataset), args.output_name)
-        cli.check_option("--output_name", output, cli.output_dataset)
+        cli.check_option("--output_name", _output_path(args, "output_name"), cli.output_dataset)
+    if getattr(args, "filter_key", None) is not None:
+        with h5py.File(args.dataset, "r") as f:
+            filter_key_demos(f, args.filter_key)  # DatasetError names the keys the file has
+    check_outputs(module_name, args)
+
+
+def _option(dest: str) -> str:
+    """An option as the help shows it (--video-path for robomimic's --video_path)."""
+    return "--" + dest.replace("_", "-")
+
+
+def _output_path(args: argparse.Namespace, dest: str) -> str | None:
+    """The file an output option names: states-to-obs's --output_name lies beside its --dataset."""
+    value = getattr(args, dest, None)
+    if dest == "output_name" and value is not None:
+        return os.path.join(os.path.dirname(args.dataset), value)
+    return value
+
+
+def check_outputs(module_name: str, args: argparse.Namespace) -> None:
+    """Refuses an output that is one of the script's inputs (robomimic would empty it before reading it), and one
+    that exists unless --force."""
+    inputs = [path for path in (getattr(args, "dataset", None), getattr(args, "agent", None)) if path is not None]
+    for dest in OUTPUTS.get(module_name, ()):
+        path = _output_path(args, dest)
+        if path is None:
+            continue
+        if any(same_file(path, source) for source in inputs):
+            raise UsageError(f"{_option(dest)} {path} is also an input: write it to a new file")
+        cli.refuse_existing(path, args.force)
 
 
 def check_observations_recorded(config_path: str, dataset: str | None) -> None:

@@ -52,6 +52,7 @@ from veragmil_suite.utils.cli.handler import (
     check_option,
     command,
     error_line,
+    refuse_existing,
 )
 from veragmil_suite.utils.cli.kinds import (
     Boolean,
@@ -169,6 +170,7 @@ __all__ = [
     "positive",
     "profile",
     "ray_address",
+    "refuse_existing",
     "respell",
     "robomimic_algo",
     "robomimic_algos",

@@ -77,13 +77,20 @@ def _writable_folder(folder: Path, text: str) -> None:
         raise argparse.ArgumentTypeError(f"{text}: the folder {folder} is not writable")
 
 
+# what imageio's ffmpeg and pillow plugins write here (webm, m4v, mpg and others fail or write nothing)
+VIDEO_SUFFIXES = (".mp4", ".gif", ".avi", ".mov", ".mkv")
+
+
 class OutputFile(Kind):
     """A file to write (or to append to, when it exists): not a folder, in a writable folder that exists, with a
-    name short enough for the file system once our writers add their temporary suffix."""
+    name short enough for the file system once our writers add their temporary suffix, and one of ``suffixes`` when
+    given (a video's: a dataset's name given by mistake is refused before imageio empties that file and fails)."""
 
-    def __init__(self, what: str = "file"):
+    def __init__(self, what: str = "file", suffixes: tuple[str, ...] = ()):
         self.what = what
-        self.accepted = f"a {what} to write, in an existing writable folder"
+        self.suffixes = suffixes
+        ending = f" ({', '.join(suffixes)})" if suffixes else ""
+        self.accepted = f"a {what}{ending} to write, in an existing writable folder"
 
     def __call__(self, text: str) -> str:
         if not str(text).strip():
@@ -100,6 +107,8 @@ class OutputFile(Kind):
         _writable_folder(path.parent, text)
         if path.exists() and not os.access(path, os.W_OK):
             raise argparse.ArgumentTypeError(f"{text}: exists and is not writable")
+        if self.suffixes and path.suffix.lower() not in self.suffixes:
+            raise argparse.ArgumentTypeError(f"{text}: not a {self.what} name; accepted: {', '.join(self.suffixes)}")
         return text
 
 
@@ -220,6 +229,6 @@ robomimic_dataset = InputFile("robomimic dataset (HDF5)", check=_robomimic_hdf5)
 robomimic_config = InputFile("robomimic config (JSON)", check=_robomimic_config)
 checkpoint = InputFile("robomimic checkpoint (.pth)", check=_checkpoint)
 output_dataset = OutputFile("dataset file")
-output_video = OutputFile("video file")
+output_video = OutputFile("video file", suffixes=VIDEO_SUFFIXES)
 output_folder = OutputFolder()
 file_name = FileName()

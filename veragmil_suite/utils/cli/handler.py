@@ -55,6 +55,13 @@ def check_option(option: str, value: str, kind: Kind) -> Any:
         raise UsageError(f"{option}: {error}") from None
 
 
+def refuse_existing(path: str | None, force: bool, option: str = "--force") -> None:
+    """Refuses to write over a file or folder that is there unless ``option`` (--force) was given: what was
+    recorded or written before is lost only when asked."""
+    if path is not None and os.path.lexists(path) and not force:
+        raise UsageError(f"{path} exists (use {option} to overwrite it)")
+
+
 # the numbers programs read from the environment, with the kind of value each takes
 ENVIRONMENT_SETTINGS = {
     "VERAGMIL_TORCH_THREADS": count,  # torch threads of a training run or a policy

@@ -106,12 +106,16 @@ class Parser(argparse.ArgumentParser):
     """
     The argparse parser of every console program: no abbreviated options (an abbreviation that is unique today is
     ambiguous after the next option), either spelling of an option (dashes or underscores), old spellings accepted
-    but hidden (``aliases=``), and a ListOf option stored as one flat list.
+    but hidden (``aliases=``), a ListOf option stored as one flat list, and a refusal in one line.
     """
 
     def __init__(self, prog: str, description: str | None = None, **kwargs):
         kwargs.setdefault("formatter_class", HelpFormatter)
         super().__init__(prog=prog, description=description, allow_abbrev=False, **kwargs)
+
+    def error(self, message: str):
+        """A refused command line as one line and exit 2: argparse's usage block above it is what --help is for."""
+        self.exit(2, f"{self.prog}: error: {message}\n")
 
     def add_argument(self, *names: str, aliases: Iterable[str] = (), **kwargs) -> argparse.Action:
         aliases = tuple(aliases)
