@@ -27,6 +27,7 @@ from veragmil_suite.calibration.spoonful import dish_volume_m3, level_spoonful_g
 from veragmil_suite.models.foods import FOODS, PHYSICS, FoodSpec, Measured
 from veragmil_suite.models.grains import GrainPile
 from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
+from veragmil_suite.utils.whole_files import written_whole
 
 # How close a simulated value must come to the published one (issue #32): degrees for the angle, a fraction of
 # the value for the others, applied to the published range's ends.
@@ -202,6 +203,6 @@ def main(argv: list[str] | None = None) -> int:
     for food, keys in missing.items():
         print(f"no published value for {food}: {', '.join(keys)} (see veragmil_suite/models/foods.py)")
     if args.json:
-        with open(args.json, "w") as f:
+        with written_whole(args.json) as partial, open(partial, "w") as f:
             json.dump({"command": " ".join(sys.argv), "rows": rows}, f, indent=1, default=float)
     return 0

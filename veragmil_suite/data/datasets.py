@@ -32,7 +32,7 @@ from veragmil_suite.data.schema import (
     write_masks,
 )
 from veragmil_suite.data.writer import action_limit, demo_problems, updated_file, write_lock
-from veragmil_suite.utils.paths import same_file
+from veragmil_suite.utils.whole_files import same_file
 
 
 def dataset_summary(path: str | Path) -> dict:

@@ -24,7 +24,7 @@ from veragmil_suite.data.writer import updated_file
 from veragmil_suite.learning import robomimic_obs
 from veragmil_suite.models.foods import with_recorded_physics
 from veragmil_suite.utils.canonical import canonical
-from veragmil_suite.utils.paths import same_file
+from veragmil_suite.utils.whole_files import same_file
 
 
 class DemoEnvs:

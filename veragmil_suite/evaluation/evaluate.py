@@ -43,6 +43,7 @@ from veragmil_suite.models.humanoid import check_robot
 from veragmil_suite.utils.canonical import canonical
 from veragmil_suite.utils.distributed import Resources, WorkerLost, ray_session, run_pieces
 from veragmil_suite.utils.host import outcome_platform, versions
+from veragmil_suite.utils.whole_files import write_text_whole
 
 
 def evaluate(
@@ -264,7 +265,7 @@ class Journal:
             self.set_aside = (self._move_aside("replaced", self._written_on()), None)
         elif self.path.exists():
             self.path.unlink()
-        self._platform_path(self.path).write_text(json.dumps(self.platform, sort_keys=True) + "\n")
+        write_text_whole(self._platform_path(self.path), json.dumps(self.platform, sort_keys=True) + "\n")
 
     @staticmethod
     def _platform_path(path: Path) -> Path:
@@ -283,7 +284,7 @@ class Journal:
         names = (f"{self.path.stem}.{tag}{f'.{n}' if n else ''}{self.path.suffix}" for n in itertools.count())
         aside = next(p for p in map(self.path.with_name, names) if not p.exists())
         self.path.rename(aside)
-        self._platform_path(aside).write_text(json.dumps(written_on, sort_keys=True) + "\n")
+        write_text_whole(self._platform_path(aside), json.dumps(written_on, sort_keys=True) + "\n")
         return aside
 
     def _read(self) -> None:

@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from veragmil_suite.utils.whole_files import write_whole
+
 RESUME_FILE = "resume.pth"
 SECONDS_FILE = "training_seconds.json"  # a finished run's training time, over all its pieces
 RESUME_FORMAT = 1
@@ -91,21 +93,11 @@ def restore(model, state: dict) -> None:
         torch.cuda.set_rng_state_all(rng["cuda"])
 
 
-def _write_whole(path: Path, write) -> None:
-    """``write(partial)`` to a temporary name beside ``path``, then renamed to it: a kill leaves the old file."""
-    partial = path.with_name(f".{path.name}.{os.getpid()}.partial")
-    try:
-        write(partial)
-        os.replace(partial, path)
-    finally:
-        partial.unlink(missing_ok=True)
-
-
 def save(run_dir: str | Path, state: dict) -> None:
     """Writes ``state`` as the run's resume file."""
     import torch  # heavy: torch, only when used
 
-    _write_whole(Path(run_dir) / RESUME_FILE, lambda partial: torch.save(state, partial))
+    write_whole(Path(run_dir) / RESUME_FILE, lambda partial: torch.save(state, partial))
 
 
 def load(run_dir: str | Path) -> dict | None:
@@ -221,7 +213,7 @@ class ResumingTrainUtils:
     def save_model(self, model, config, env_meta, shape_meta, ckpt_path, obs_normalization_stats=None):
         if self.skipping:
             return
-        _write_whole(
+        write_whole(
             Path(ckpt_path),
             lambda partial: self._train_utils.save_model(
                 model=model,
@@ -237,7 +229,7 @@ class ResumingTrainUtils:
         """The run ended: its training time is written and its resume state is no longer needed."""
         if self.run_dir is not None:
             text = json.dumps({"seconds": round(self.seconds(), 1)}) + "\n"
-            _write_whole(self.run_dir / SECONDS_FILE, lambda partial: partial.write_text(text))
+            write_whole(self.run_dir / SECONDS_FILE, lambda partial: partial.write_text(text))
             (self.run_dir / RESUME_FILE).unlink(missing_ok=True)
 
 

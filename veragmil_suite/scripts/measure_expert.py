@@ -38,6 +38,7 @@ from veragmil_suite.models.scoop_task import (
 )
 from veragmil_suite.utils.distributed import run_pieces
 from veragmil_suite.utils.rendering import use_headless_rendering
+from veragmil_suite.utils.whole_files import written_whole
 
 
 def run_expert_episode(
@@ -292,7 +293,7 @@ def main(argv: list[str] | None = None) -> int:
             f"  {s['mean_grains_in_spoon']:>6.1f} +-{s['std_grains_in_spoon']:>4.1f}  {t:>7}"
         )
     if args.json:
-        with open(args.json, "w") as f:
+        with written_whole(args.json) as partial, open(partial, "w") as f:
             json.dump(
                 dict(
                     robot=args.robot,

@@ -35,7 +35,7 @@ from veragmil_suite.study.publish import pooled_timings
 from veragmil_suite.utils import cli
 from veragmil_suite.utils.cli.handler import UsageError, command
 from veragmil_suite.utils.cli.parser import Parser
-from veragmil_suite.utils.paths import same_file
+from veragmil_suite.utils.whole_files import same_file, write_text_whole
 
 
 class PooledAgent(cli.Text):
@@ -96,14 +96,14 @@ def main(args: argparse.Namespace) -> int:
         print(path)
     timings = pooled_timings(result.config)
     if timings:
-        (Path(args.output_dir) / "timings.json").write_text(json.dumps(timings, indent=2) + "\n")
+        write_text_whole(Path(args.output_dir) / "timings.json", json.dumps(timings, indent=2) + "\n")
         print(Path(args.output_dir) / "timings.json")
     if any(n > 1 for n in Counter(p["recipe"] for p in points).values()):
         write_seed_tables(result, points, Path(args.output_dir))
         print(Path(args.output_dir) / "seeds.md")
     if comparisons:
         paired = paired_markdown(comparisons)
-        (Path(args.output_dir) / "paired.md").write_text(paired)
+        write_text_whole(Path(args.output_dir) / "paired.md", paired)
         print(Path(args.output_dir) / "paired.md")
         print(paired, end="")
     return 0

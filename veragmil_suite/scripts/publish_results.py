@@ -15,7 +15,7 @@ from veragmil_suite.study.publish import publish
 from veragmil_suite.utils import cli
 from veragmil_suite.utils.cli.handler import UsageError, command
 from veragmil_suite.utils.cli.parser import Parser
-from veragmil_suite.utils.paths import same_file
+from veragmil_suite.utils.whole_files import same_file
 
 
 def build_parser() -> Parser:

@@ -29,7 +29,7 @@ from veragmil_suite.learning import robomimic_compat, robomimic_scripts, trainin
 from veragmil_suite.learning.observation_sets import WRENCH_OBSERVATIONS
 from veragmil_suite.utils import cli
 from veragmil_suite.utils.cli.handler import UsageError
-from veragmil_suite.utils.paths import same_file
+from veragmil_suite.utils.whole_files import same_file
 
 SCRIPTS = {
     "train": "robomimic.scripts.train",

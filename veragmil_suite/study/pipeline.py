@@ -47,6 +47,7 @@ from veragmil_suite.study.training import (
     training_resources,
 )
 from veragmil_suite.utils.distributed import Resources, cluster_resources, ray_session, run_pieces
+from veragmil_suite.utils.whole_files import write_text_whole
 
 # what eval/ holds beside the evaluation's own tables: learning curves, and the tables over training seeds
 CURVE_FILES = ("curves.csv", "curves.png")
@@ -118,7 +119,7 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True, verbose: boo
     def note(key: str, seconds: float | None) -> None:
         if seconds is not None:
             timings[key] = round(seconds, 1)
-            timings_file.write_text(json.dumps(timings, indent=2))
+            write_text_whole(timings_file, json.dumps(timings, indent=2))
 
     with ray_session(settings.ray) as address:
         if address is not None:

@@ -10,6 +10,7 @@ from collections import Counter
 from pathlib import Path
 
 from veragmil_suite.utils.host import host
+from veragmil_suite.utils.whole_files import write_text_whole, write_whole
 
 # what a study's eval/ folder holds that results/ keeps
 EVAL_FILES = (
@@ -101,7 +102,7 @@ def publish(study_dir: Path, dest: Path, command: str) -> list[str]:
     for name in EVAL_FILES:
         if (eval_dir / name).is_file():
             (dest / name).parent.mkdir(parents=True, exist_ok=True)
-            shutil.copy2(eval_dir / name, dest / name)
+            write_whole(dest / name, lambda partial, name=name: shutil.copy2(eval_dir / name, partial))
             written.append(name)
     timings = study_timings(eval_dir / "results.json")
     config = json.loads((eval_dir / "results.json").read_text())["config"]
@@ -130,5 +131,5 @@ def publish(study_dir: Path, dest: Path, command: str) -> list[str]:
         *(f"| {k} | {v} |" for k, v in timings.items()),
         "",
     ]
-    (dest / "RUN.md").write_text("\n".join(lines))
+    write_text_whole(dest / "RUN.md", "\n".join(lines))
     return [*written, "RUN.md"]

@@ -20,6 +20,7 @@ from veragmil_suite.learning.training_resume import comparable_config, training_
 from veragmil_suite.study.logged_run import TRAINING_PROGRESS, LogProgress, console, run_logged
 from veragmil_suite.study.settings import ROBOMIMIC_TORCH_THREADS, StageError
 from veragmil_suite.utils.distributed import Resources, cluster_resources
+from veragmil_suite.utils.whole_files import write_text_whole
 
 
 def training_config(
@@ -166,10 +167,12 @@ def train_checkpoint(
             config = json.loads(json.dumps(config))
             config["experiment"]["save"]["epochs"] = sorted(saved - {epochs})
             shutil.rmtree(Path(config["train"]["output_dir"]) / name, ignore_errors=True)
-    config_file.write_text(json.dumps(config, indent=4))
+    write_text_whole(config_file, json.dumps(config, indent=4))
     if Path(config["train"]["data"]).exists():  # robomimic names a missing one
         data = dict(data=config["train"]["data"], filter_key=config["train"]["hdf5_filter_key"])
-        _data_file(config, work_dir).write_text(json.dumps(dict(data, digest=training_data_digest(config)), indent=2))
+        write_text_whole(
+            _data_file(config, work_dir), json.dumps(dict(data, digest=training_data_digest(config)), indent=2)
+        )
     environ = {}
     if torch_threads is not None:
         environ = {"VERAGMIL_TORCH_THREADS": str(torch_threads), "OMP_NUM_THREADS": str(torch_threads)}

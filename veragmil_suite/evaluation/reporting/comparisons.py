@@ -22,6 +22,7 @@ from veragmil_suite.evaluation.reporting.tables import (
     wilson_interval,
 )
 from veragmil_suite.learning.algorithms import ALGORITHMS
+from veragmil_suite.utils.whole_files import write_text_whole, written_whole
 
 # the evaluation settings two results.json must share for their episodes to be comparable
 SHARED_SETTINGS = ("foods", "episodes", "seed", "horizon", "robot", "success_hold_s", "env_kwargs", "versions")
@@ -63,7 +64,7 @@ def write_learning_curves(result, points: list[dict], out_dir: Path) -> None:
 
     rows = learning_curves(result, points)
     columns = list(dict.fromkeys(k for r in rows for k in r))
-    with open(out_dir / "curves.csv", "w", newline="") as f:
+    with written_whole(out_dir / "curves.csv") as partial, open(partial, "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=columns)
         writer.writeheader()
         writer.writerows(rows)
@@ -93,7 +94,8 @@ def write_learning_curves(result, points: list[dict], out_dir: Path) -> None:
         ax.set_ylim(0, 100)
         ax.legend(fontsize="x-small")
     fig.tight_layout()
-    fig.savefig(out_dir / "curves.png", dpi=100)
+    with written_whole(out_dir / "curves.png", keep_suffix=True) as partial:
+        fig.savefig(partial, dpi=100)
     plt.close(fig)
 
 
@@ -146,11 +148,11 @@ def write_seed_tables(result, points: list[dict], out_dir: Path) -> None:
     """seeds.md and seeds.csv (seed_spread), and seeds/: the tables, stages and chart with each recipe's seeds
     pooled into one column (its episodes of every seed; intervals over the pooled episodes)."""
     rows = seed_spread(result, points)
-    with open(out_dir / "seeds.csv", "w", newline="") as f:
+    with written_whole(out_dir / "seeds.csv") as partial, open(partial, "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    (out_dir / "seeds.md").write_text(seed_markdown(rows))
+    write_text_whole(out_dir / "seeds.md", seed_markdown(rows))
     recipe_of = {p["agent"]: p["recipe"] for p in points}
     config = dict(result.config, pooled_training_seeds=sorted({p["train_seed"] for p in points}))
     if "rnn_horizon" in config:

@@ -21,6 +21,7 @@ from veragmil_suite.environments.stages import SCOOP_STAGES
 from veragmil_suite.environments.task_state import DEFAULT_SPILL_LIMIT
 from veragmil_suite.evaluation.agents import MISSING, EpisodeRecord
 from veragmil_suite.models.foods import PRE_CALIBRATION_PHYSICS, TRAINING_FOODS
+from veragmil_suite.utils.whole_files import write_text_whole, written_whole
 
 SEEN_LABEL = "seen (training)"
 UNSEEN_LABEL = "unseen"
@@ -309,7 +310,8 @@ def plot_success(summary: dict, agents: list[str], foods: list[str], path: str) 
     ax.set_ylim(0, 100)
     ax.legend(fontsize="small")
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    with written_whole(path, keep_suffix=True) as partial:
+        fig.savefig(partial, dpi=100)
     plt.close(fig)
 
 
@@ -339,18 +341,18 @@ class EvaluationResult:
         out.mkdir(parents=True, exist_ok=True)
         names = ("episodes.csv", "results.json", "table.md", "table.csv", "stages.md", "stages.csv")
         paths = {name: str(out / name) for name in names}
-        with open(paths["episodes.csv"], "w", newline="") as f:
+        with written_whole(paths["episodes.csv"]) as partial, open(partial, "w", newline="") as f:
             writer = csv.DictWriter(f, fieldnames=EpisodeRecord.columns())
             writer.writeheader()
             writer.writerows(e.to_dict() for e in self.episodes)
         episodes = [e.to_dict() for e in self.episodes]
         config = {**self.config, "physics": physics_of(self.summary), "spill_limit_of": spill_limits_of(self.summary)}
         results = dict(config=config, summary=list(self.summary.values()), episodes=episodes)
-        Path(paths["results.json"]).write_text(json.dumps(json_safe(results), indent=2))
-        Path(paths["table.md"]).write_text(self.markdown())
-        Path(paths["table.csv"]).write_text(csv_tables(self.summary, self.agents, self.foods))
-        Path(paths["stages.md"]).write_text(self.stages_markdown())
-        Path(paths["stages.csv"]).write_text(stage_table(self.summary, self.agents, self.foods, fmt="csv"))
+        write_text_whole(paths["results.json"], json.dumps(json_safe(results), indent=2))
+        write_text_whole(paths["table.md"], self.markdown())
+        write_text_whole(paths["table.csv"], csv_tables(self.summary, self.agents, self.foods))
+        write_text_whole(paths["stages.md"], self.stages_markdown())
+        write_text_whole(paths["stages.csv"], stage_table(self.summary, self.agents, self.foods, fmt="csv"))
         paths["success.png"] = str(out / "success.png")
         plot_success(self.summary, self.agents, self.foods, paths["success.png"])
         for e in self.episodes:  # this run's videos only, not those an earlier run left in the folder

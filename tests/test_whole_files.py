@@ -1,0 +1,50 @@
+"""Outputs written whole or not at all, never over their own inputs (veragmil_suite.utils.whole_files)."""
+
+import os
+
+import pytest
+
+from veragmil_suite.utils.whole_files import same_file, write_text_whole, written_whole
+
+
+def test_a_write_cut_short_leaves_the_file_that_was_there_and_no_temporary_one(tmp_path):
+    path = tmp_path / "results.json"
+    path.write_text("the earlier evaluation")
+    with pytest.raises(RuntimeError), written_whole(path) as partial:
+        partial.write_text('{"half": ')
+        raise RuntimeError("killed part-way")
+    assert path.read_text() == "the earlier evaluation"
+    assert [p.name for p in tmp_path.iterdir()] == ["results.json"]
+    write_text_whole(path, "the new one")
+    assert path.read_text() == "the new one"
+    assert [p.name for p in tmp_path.iterdir()] == ["results.json"]
+
+
+def test_the_temporary_name_is_hidden_from_searches_by_suffix_unless_the_writer_needs_it(tmp_path):
+    with written_whole(tmp_path / "model_epoch_50.pth") as partial:
+        assert partial.name.startswith(".") and not partial.name.endswith(".pth")  # no glob("*.pth") takes it
+        partial.write_bytes(b"weights")
+    with written_whole(tmp_path / "success.png", keep_suffix=True) as partial:
+        assert partial.suffix == ".png"  # matplotlib reads the format from it
+        partial.write_bytes(b"png")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["model_epoch_50.pth", "success.png"]
+
+
+def test_a_name_at_the_length_limit_is_written_whole(tmp_path):
+    path = tmp_path / ("n" * (os.pathconf(tmp_path, "PC_NAME_MAX") - len(".json")) + ".json")
+    write_text_whole(path, "{}")
+    assert path.read_text() == "{}"
+
+
+def test_same_file_knows_a_file_by_every_name(tmp_path):
+    data = tmp_path / "data.hdf5"
+    data.write_text("demos")
+    (tmp_path / "link.hdf5").hardlink_to(data)
+    (tmp_path / "alias.hdf5").symlink_to(data)
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "other.hdf5").write_text("demos")
+    assert same_file(data, tmp_path / "link.hdf5")
+    assert same_file(data, tmp_path / "alias.hdf5")
+    assert same_file(data, tmp_path / "sub" / ".." / "data.hdf5")
+    assert not same_file(data, tmp_path / "other.hdf5")  # alike, but another file
+    assert not same_file(data, tmp_path / "new.hdf5")  # not there yet

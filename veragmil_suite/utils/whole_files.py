@@ -1,0 +1,53 @@
+"""Files written whole or not at all, and never over one of their own inputs.
+
+A program's outputs (tables, records, settings a study resumes from, videos) are written under a temporary name
+beside their place and renamed onto it once complete: a kill, a full disk or an error part-way leaves the file that
+was there, never half of the new one. HDF5 datasets have their own writer (veragmil_suite.data.safe_hdf5).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+
+def same_file(a: str | Path, b: str | Path) -> bool:
+    """True when ``a`` and ``b`` name one file or folder: the same path once resolved (symbolic links, ``..``), or
+    two names of one file (a hard link), which a write to either would change."""
+    if Path(a).resolve() == Path(b).resolve():
+        return True
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # either is not there: then they are not one file
+        return False
+
+
+@contextlib.contextmanager
+def written_whole(path: str | Path, keep_suffix: bool = False) -> Iterator[Path]:
+    """Yields a temporary path beside ``path`` to write the file to, renamed onto ``path`` when the block ends and
+    removed when it raises. It ends in ``.partial`` (no search for ``*.pth`` or ``*.json`` finds one a kill left),
+    or with ``keep_suffix`` in ``path``'s own suffix, for writers that read the format from the name (matplotlib,
+    imageio)."""
+    path = Path(path)
+    # the name cut so that one at the file system's length limit still has room for the temporary one's
+    tail = f".{os.getpid()}.partial"
+    partial = path.with_name(f".{path.stem[:180]}{tail}{path.suffix}" if keep_suffix else f".{path.name[:180]}{tail}")
+    try:
+        yield partial
+        os.replace(partial, path)
+    finally:
+        partial.unlink(missing_ok=True)
+
+
+def write_whole(path: str | Path, write: Callable[[Path], object]) -> None:
+    """``write(partial)`` writes the file under a temporary name, then it is renamed onto ``path``."""
+    with written_whole(path) as partial:
+        write(partial)
+
+
+def write_text_whole(path: str | Path, text: str) -> None:
+    """``path`` holds ``text``, written whole (written_whole)."""
+    with written_whole(path) as partial:
+        partial.write_text(text)
