@@ -48,3 +48,11 @@ def test_same_file_knows_a_file_by_every_name(tmp_path):
     assert same_file(data, tmp_path / "sub" / ".." / "data.hdf5")
     assert not same_file(data, tmp_path / "other.hdf5")  # alike, but another file
     assert not same_file(data, tmp_path / "new.hdf5")  # not there yet
+
+
+def test_a_block_that_wrote_nothing_leaves_the_file_as_it_was(tmp_path):
+    path = tmp_path / "replay.mp4"
+    path.write_bytes(b"an earlier video")
+    with written_whole(path, keep_suffix=True):
+        pass  # no demo selected: nothing rendered
+    assert path.read_bytes() == b"an earlier video"

@@ -4,6 +4,7 @@ observations rendered (veragmil-replay, veragmil-render-obs).
 
 from __future__ import annotations
 
+import contextlib
 import json
 from pathlib import Path
 
@@ -24,7 +25,7 @@ from veragmil_suite.data.writer import updated_file
 from veragmil_suite.learning import robomimic_obs
 from veragmil_suite.models.foods import with_recorded_physics
 from veragmil_suite.utils.canonical import canonical
-from veragmil_suite.utils.whole_files import same_file
+from veragmil_suite.utils.whole_files import same_file, written_whole
 
 
 class DemoEnvs:
@@ -111,7 +112,9 @@ def replay_demos(
 
     if video is not None and same_file(path, video):
         raise DatasetError(f"{video} is also the input: write the video to a new file")
-    with open_dataset(path) as f:
+    with open_dataset(path) as f, contextlib.ExitStack() as stack:
+        # the video is written whole: an earlier one stays until this one is complete
+        target = None if video is None else stack.enter_context(written_whole(video, keep_suffix=True))
         names = _select_demos(f, demos, n)
         envs = DemoEnvs(f, has_offscreen_renderer=video is not None, use_camera_obs=False)
         writer = None
@@ -123,7 +126,7 @@ def replay_demos(
                 if video is not None:
                     _check_camera(env, camera)
                     if writer is None:
-                        writer = imageio.get_writer(str(video), fps=fps or env.control_freq / skip, macro_block_size=1)
+                        writer = imageio.get_writer(str(target), fps=fps or env.control_freq / skip, macro_block_size=1)
                 states = g["states"][()]
                 # what was executed: the operator's own actions under injected noise are the labels, not these
                 actions = g["executed_actions" if "executed_actions" in g else "actions"][()]

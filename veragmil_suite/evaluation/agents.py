@@ -48,6 +48,7 @@ from veragmil_suite.models.foods import (
 )
 from veragmil_suite.utils.canonical import canonical
 from veragmil_suite.utils.rendering import use_headless_rendering
+from veragmil_suite.utils.whole_files import written_whole
 
 ALL_FOODS: tuple[str, ...] = TRAINING_FOODS + UNSEEN_FOODS
 # the robot of the expert's environment (checkpoints bring their own env_args)
@@ -317,7 +318,8 @@ def run_episode(task: EpisodeTask) -> EpisodeRecord:
         import imageio  # imageio takes ~80 ms to import: only when writing videos
 
         Path(task.video_path).parent.mkdir(parents=True, exist_ok=True)
-        imageio.mimsave(task.video_path, frames, fps=env.control_freq)
+        with written_whole(task.video_path, keep_suffix=True) as partial:
+            imageio.mimsave(partial, frames, fps=env.control_freq)
     metrics = episode_metrics(end.info, end.stage)
     return EpisodeRecord(
         agent=task.agent,

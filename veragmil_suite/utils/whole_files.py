@@ -26,17 +26,20 @@ def same_file(a: str | Path, b: str | Path) -> bool:
 
 @contextlib.contextmanager
 def written_whole(path: str | Path, keep_suffix: bool = False) -> Iterator[Path]:
-    """Yields a temporary path beside ``path`` to write the file to, renamed onto ``path`` when the block ends and
-    removed when it raises. It ends in ``.partial`` (no search for ``*.pth`` or ``*.json`` finds one a kill left),
-    or with ``keep_suffix`` in ``path``'s own suffix, for writers that read the format from the name (matplotlib,
-    imageio)."""
+    """
+    Yields a temporary path beside ``path`` to write the file to, renamed onto ``path`` when the block ends (a block
+    that wrote nothing leaves ``path`` as it was) and removed when it raises. It ends in ``.partial`` (no search for
+    ``*.pth`` or ``*.json`` finds one a kill left), or with ``keep_suffix`` in ``path``'s own suffix, for writers that
+    read the format from the name (matplotlib, imageio).
+    """
     path = Path(path)
     # the name cut so that one at the file system's length limit still has room for the temporary one's
     tail = f".{os.getpid()}.partial"
     partial = path.with_name(f".{path.stem[:180]}{tail}{path.suffix}" if keep_suffix else f".{path.name[:180]}{tail}")
     try:
         yield partial
-        os.replace(partial, path)
+        if partial.exists():
+            os.replace(partial, path)
     finally:
         partial.unlink(missing_ok=True)
 
