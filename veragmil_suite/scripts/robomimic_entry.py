@@ -286,9 +286,14 @@ _COMMANDS = {
 def main(argv: list[str] | None = None) -> int:
     """``python -m veragmil_suite.scripts.robomimic_entry <command> [robomimic arguments]``."""
     argv = sys.argv[1:] if argv is None else argv
+    prog = f"python -m {__spec__.name if __spec__ else __name__}"
+    if argv and argv[0] in ("-h", "--help"):
+        print(f"usage: {prog} {{{','.join(_COMMANDS)}}} [arguments]")
+        return 0
     if not argv or argv[0] not in _COMMANDS:
-        print(f"usage: python -m {__spec__.name if __spec__ else __name__} {{{','.join(_COMMANDS)}}} [arguments]")
-        return 0 if argv and argv[0] in ("-h", "--help") else 2
+        given = f"unknown command {argv[0]!r}" if argv else "give a command"
+        print(f"{prog}: {given}; accepted: {', '.join(_COMMANDS)}", file=sys.stderr)
+        return 2
     return _COMMANDS[argv[0]](argv[1:])
 
 
