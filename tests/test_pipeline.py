@@ -537,10 +537,11 @@ def test_a_stage_called_as_a_function_logs_its_output_and_fails_with_the_tail_of
         run_logged_call(say_then, dict(lines=["before"], error="it broke"), log, "failing stage")
 
 
-def test_a_stage_signalled_as_it_exits_still_lets_go_of_its_semaphores(tmp_path):
-    """A SIGTERM that reaches a stage after its function (stop_tree's, as the stage ends on its own) does not cut
-    multiprocessing's exit clean-up short: otherwise its pools' semaphores leak, and the study's resource tracker
-    reports them on stderr after the study's last line."""
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_a_stage_signalled_as_it_exits_still_lets_go_of_its_semaphores(signum, tmp_path):
+    """A SIGTERM (stop_tree's) or Ctrl-C (the terminal's, to the whole group) that reaches a stage after its function
+    does not cut multiprocessing's exit clean-up short: otherwise its pools' semaphores leak, and the study's resource
+    tracker reports them on stderr after the study's last line."""
     marker, log = tmp_path / "exiting", tmp_path / "stage.log"
     script = (
         "import sys; sys.path.insert(0, sys.argv[1])\n"
@@ -559,7 +560,7 @@ def test_a_stage_signalled_as_it_exits_still_lets_go_of_its_semaphores(tmp_path)
         while time.monotonic() < deadline and not marker.exists() and study.poll() is None:
             time.sleep(0.02)
         assert marker.exists(), "the stage did not reach its exit"
-        os.kill(int(marker.read_text()), signal.SIGTERM)
+        os.kill(int(marker.read_text()), signum)
         _, stderr = study.communicate(timeout=60)
     finally:
         study.kill()

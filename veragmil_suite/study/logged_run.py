@@ -129,13 +129,17 @@ def _logged_call(function: Callable[..., object], kwargs: dict, log_path: str) -
         os.dup2(nothing.fileno(), 0)
     sys.stdout.reconfigure(line_buffering=True)
     sys.stderr.reconfigure(line_buffering=True)
-    # stopped by the study (stop_tree): the function unwinds, its pools and writes closed; a SIGTERM after it is
-    # ignored, or it would end the child before multiprocessing's exit clean-up unlinks its pools' semaphores,
-    # which the study's resource tracker then reports as leaked under the study's last line
+    # stopped by the study (stop_tree) or Ctrl-C (the terminal's, to the whole process group): the function unwinds,
+    # its pools and writes closed. Either signal after it is ignored: it would break off multiprocessing's exit
+    # clean-up, which unlinks the pools' semaphores, and the study's resource tracker would report them as leaked
+    # under the study's last line (the study stops this process itself)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
     try:
-        with sigterm_raises():
-            function(**kwargs)
+        try:
+            with sigterm_raises():
+                function(**kwargs)
+        finally:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
     except BaseException:
         traceback.print_exc()
         sys.stdout.flush()
