@@ -10,7 +10,7 @@ from robosuite.controllers import load_composite_controller_config, load_part_co
 from robosuite.controllers.composite.composite_controller import CompositeController, register_composite_controller
 from robosuite.controllers.parts.arm.ik import SUPPORTED_IK_ROBOTS
 
-from veragmil_suite.models.humanoid import SPOON_ARM, humanoid_layout
+from veragmil_suite.models.humanoid import SPOON_ARM, check_robot, humanoid_layout
 
 ARM_CONTROLLERS = ("OSC_POSE", "IK_POSE")
 
@@ -148,6 +148,7 @@ def load_scoop_controller_config(controller: str = "OSC_POSE", robot: str = "XAr
     """
     if controller not in ARM_CONTROLLERS:
         raise ValueError(f"Unknown arm controller {controller!r}; accepted: {', '.join(ARM_CONTROLLERS)}")
+    check_robot(robot)
     layout = humanoid_layout(robot)
     if controller == "IK_POSE" and robot not in IK_ROBOTS:
         raise ValueError(

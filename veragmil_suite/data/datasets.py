@@ -19,6 +19,7 @@ from veragmil_suite.data.schema import (
     DamagedDataset,
     DatasetError,
     check_demo,
+    check_valid_ratio,
     demo_names,
     demo_start,
     env_kwargs_variants,
@@ -32,6 +33,7 @@ from veragmil_suite.data.schema import (
     write_masks,
 )
 from veragmil_suite.data.writer import action_limit, demo_problems, updated_file, write_lock
+from veragmil_suite.utils.numbers import is_number
 from veragmil_suite.utils.whole_files import same_file
 
 
@@ -168,6 +170,9 @@ def merge_datasets(inputs: list[str | Path], output: str | Path, valid_ratio: fl
         DatasetError: [an input is not a ScoopGranular dataset, or inputs differ in robot, controller, control
             rate, cameras or observation keys]
     """
+    if isinstance(inputs, (str, Path)):
+        raise DatasetError(f"inputs must be a list of dataset files, got one path: {inputs!r} (give [{inputs!r}])")
+    check_valid_ratio(valid_ratio)
     output = Path(output)
     if any(same_file(i, output) for i in inputs):
         raise DatasetError(f"{output} is also an input: merge into a new file")
@@ -266,6 +271,8 @@ def drop_noops(
     Returns:
         (demos kept, steps before, steps after, held no-op steps kept)
     """
+    if not (is_number(threshold) and 0 <= threshold < 1):
+        raise DatasetError(f"the no-op threshold must lie in [0, 1) (a fraction of full scale), got {threshold!r}")
     output = Path(output)
     if same_file(path, output):
         raise DatasetError(f"{output} is also the input: write the copy to a new file")
@@ -329,15 +336,14 @@ def drop_noops(
 
 def split_dataset(path: str | Path, ratio: float, seed: int = 0, filter_key: str | None = None) -> tuple[int, int]:
     """Rewrite the train/valid masks of ``path`` (``<filter_key>_train/_valid`` within a filter key)."""
-    if not 0 <= ratio < 1:
-        raise DatasetError(f"the validation ratio must lie in [0, 1), got {ratio}")
+    check_valid_ratio(ratio)
     open_dataset(path).close()  # a clear error for a file that is not a dataset
     with updated_file(path) as working:
         f = working.file
         if filter_key is None:
             names, prefix = demo_names(f), ""
         else:
-            names, prefix = filter_key_demos(f, filter_key), filter_key + "_"
+            names, prefix = filter_key_demos(f, filter_key, where=path), filter_key + "_"
         train, valid = split_demos(names, ratio, seed)
         if "mask" not in f:
             write_masks(f)

@@ -25,6 +25,7 @@ from veragmil_suite.data.writer import updated_file
 from veragmil_suite.learning import robomimic_obs
 from veragmil_suite.models.foods import with_recorded_physics
 from veragmil_suite.utils.canonical import canonical
+from veragmil_suite.utils.numbers import is_number, is_whole
 from veragmil_suite.utils.whole_files import same_file, written_whole
 
 
@@ -112,6 +113,13 @@ def replay_demos(
 
     if video is not None and same_file(path, video):
         raise DatasetError(f"{video} is also the input: write the video to a new file")
+    for name, value in (("n", n), ("skip", skip), ("height", height), ("width", width)):
+        if (value is not None or name != "n") and not (is_whole(value) and value > 0):
+            raise DatasetError(
+                f"{name} must be a positive integer{' or None (all)' if name == 'n' else ''}, got {value!r}"
+            )
+    if fps is not None and not (is_number(fps) and fps > 0):
+        raise DatasetError(f"fps must be a positive number or None (real time), got {fps!r}")
     with open_dataset(path) as f, contextlib.ExitStack() as stack:
         # the video is written whole: an earlier one stays until this one is complete
         target = None if video is None else stack.enter_context(written_whole(video, keep_suffix=True))

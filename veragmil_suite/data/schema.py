@@ -36,6 +36,7 @@ import robosuite
 import veragmil_suite
 from veragmil_suite.models.foods import DEFAULT_PHYSICS, with_recorded_physics
 from veragmil_suite.utils.canonical import canonical
+from veragmil_suite.utils.numbers import is_number, is_whole
 
 ENV_NAME = "ScoopGranular"
 ROBOSUITE_ENV_TYPE = 1  # robomimic's EnvType.ROBOSUITE_TYPE
@@ -121,8 +122,9 @@ def demo_names(f: h5py.File) -> list[str]:
     return sorted(names, key=lambda n: int(n[len(DEMO_PREFIX) :]))
 
 
-def filter_key_demos(f: h5py.File, filter_key: str) -> list[str]:
-    """The demo names robomimic's filter key ``filter_key`` (``mask/<key>``) lists, in its order.
+def filter_key_demos(f: h5py.File, filter_key: str, where: str | Path | None = None) -> list[str]:
+    """The demo names robomimic's filter key ``filter_key`` (``mask/<key>``) lists, in its order; ``where`` names
+    the file in a refusal (a working copy's own name would mean nothing to the user).
 
     Raises:
         DatasetError: [the file has no such filter key; the message lists those it has]
@@ -130,7 +132,7 @@ def filter_key_demos(f: h5py.File, filter_key: str) -> list[str]:
     keys = sorted(f["mask"]) if isinstance(f.get("mask"), h5py.Group) else []
     if filter_key not in keys:
         have = ", ".join(keys) or "none"
-        raise DatasetError(f"{f.filename} has no filter key {filter_key!r}; its filter keys: {have}")
+        raise DatasetError(f"{where or f.filename} has no filter key {filter_key!r}; its filter keys: {have}")
     return [x.decode() if isinstance(x, bytes) else str(x) for x in f["mask"][filter_key][()]]
 
 
@@ -351,8 +353,18 @@ def write_masks(f: h5py.File, valid_ratio: float = 0.1, seed: int = 0) -> dict[s
     return masks
 
 
+def check_valid_ratio(valid_ratio: float) -> float:
+    """The share of demos in mask/valid: a number in [0, 1). DatasetError otherwise."""
+    if not (is_number(valid_ratio) and 0 <= valid_ratio < 1):
+        raise DatasetError(f"the validation ratio must lie in [0, 1), got {valid_ratio!r}")
+    return float(valid_ratio)
+
+
 def split_demos(names: list[str], valid_ratio: float, seed: int = 0) -> tuple[list[str], list[str]]:
     """Train and valid demo names: a seeded shuffle, at least one valid demo once there are two."""
+    check_valid_ratio(valid_ratio)
+    if not is_whole(seed) or seed < 0:
+        raise DatasetError(f"the split's seed must be a non-negative integer, got {seed!r}")
     n = len(names)
     n_valid = int(round(n * valid_ratio))
     if valid_ratio > 0 and n >= 2:

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from veragmil_suite.environments.stages import StageTracker
+from veragmil_suite.utils.numbers import is_number
 
 # how long success must hold to end an episode (veragmil-collect's default --success-hold, veragmil-evaluate's rule)
 SUCCESS_HOLD_S = 1.0
@@ -36,6 +37,8 @@ class SuccessHold:
     """
 
     def __init__(self, control_freq: float, success_hold_s: float | None = SUCCESS_HOLD_S):
+        if success_hold_s is not None and not is_number(success_hold_s):
+            raise ValueError(f"success_hold_s must be None or a finite number of seconds, got {success_hold_s!r}")
         self.steps = None  # consecutive successful steps that end the episode
         if success_hold_s is not None and success_hold_s > 0:
             self.steps = max(1, int(round(success_hold_s * control_freq)))

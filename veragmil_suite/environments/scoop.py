@@ -20,6 +20,7 @@ from veragmil_suite.controllers.scoop_config import (
     load_scoop_controller_config,
     untuned_controller_difference,
 )
+from veragmil_suite.environments.arguments import check_arguments, check_grain_count
 from veragmil_suite.environments.pile_variants import PileVariantsMixin
 from veragmil_suite.environments.settling import settle
 from veragmil_suite.environments.start_pose import StartPoseMixin
@@ -53,9 +54,6 @@ from veragmil_suite.models.spoon_gripper import spoon_contact
 from veragmil_suite.utils.kinematics import quat_mul_wxyz
 from veragmil_suite.utils.sim_xml import keep_sim_xml
 
-# the largest grain count accepted, as a multiple of the food's default (veragmil_suite.scripts.bench times 1x, 2x and
-# 4x)
-MAX_GRAINS_PER_DEFAULT = 4
 # the slowest control rate accepted: a control period longer than a second is neither teleoperation nor a policy,
 # and robosuite runs period / physics step substeps per control step (control_freq=1e-9 would never return)
 MIN_CONTROL_FREQ_HZ = 1.0
@@ -185,33 +183,26 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
         renderer_config=None,
         seed=None,
     ):
+        check_arguments({name: value for name, value in locals().items() if name not in ("self", "__class__")})
         self.food: FoodSpec = get_food(food)
         self.physics = check_physics(physics)
         self.grain: GrainModel = self.food.grain(self.physics)
-        for robot in [robots] if isinstance(robots, str) else list(robots):
-            check_robot(robot)
         robot_name = robots if isinstance(robots, str) else robots[0]
+        check_robot(robot_name)
         self.humanoid: HumanoidLayout | None = humanoid_layout(robot_name)
         if self.humanoid is not None and isinstance(gripper_types, str):
             gripper_types = [[gripper_types, None]]  # per arm (right, left) of the one robot
-        if n_grains is not None and (not isinstance(n_grains, (int, np.integer)) or n_grains <= 0):
-            raise ValueError(f"n_grains must be a positive integer or None (the food's default), got {n_grains!r}")
-        self.n_grains = int(n_grains) if n_grains is not None else self.grain.default_grains
+        self.n_grains = check_grain_count(n_grains, self.food, self.physics)
         # food, physics and n_grains are the simulation's (a loaded model's may differ); these are what fresh
         # models get
         self._env_food, self._env_physics, self._env_n_grains = self.food, self.physics, self.n_grains
-        limit = MAX_GRAINS_PER_DEFAULT * self.grain.default_grains
-        if self.n_grains > limit:
-            raise ValueError(
-                f"n_grains {self.n_grains} is more than a bowl of {self.food.name} settles in reasonable time: at most "
-                f"{limit} ({MAX_GRAINS_PER_DEFAULT}x its default of {self.grain.default_grains})"
-            )
-        if int(pile_variants) < 1:
-            raise ValueError(f"pile_variants must be at least 1, got {pile_variants!r}")
         self.pile_variants = int(pile_variants)
-        for label, rng_range in (("bowl_x_range", bowl_x_range), ("bowl_y_range", bowl_y_range)):
-            if len(rng_range) != 2 or rng_range[0] > rng_range[1]:
-                raise ValueError(f"{label} must be (low, high) with low <= high, got {rng_range!r}")
+        for label, rng_range, half in (
+            ("bowl_x_range", bowl_x_range, table_full_size[0] / 2),
+            ("bowl_y_range", bowl_y_range, table_full_size[1] / 2),
+        ):
+            if not -half <= rng_range[0] <= rng_range[1] <= half:
+                raise ValueError(f"{label} must lie on the table, within +-{half:g} m of its centre, got {rng_range!r}")
         if (
             isinstance(control_freq, bool)
             or not isinstance(control_freq, (int, float))
@@ -229,8 +220,6 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
         self.success_pos_tolerance = success_pos_tolerance
         self.success_tilt_tolerance = np.deg2rad(success_tilt_tolerance_deg)
         self.success_max_speed = success_max_speed
-        if not 0 < min_portion_fraction <= 1:
-            raise ValueError(f"min_portion_fraction must lie in (0, 1], got {min_portion_fraction!r}")
         self.min_portion_fraction = min_portion_fraction
         self.min_portion_cm3 = min_portion_cm3
         self.max_spill_fraction = max_spill_fraction
@@ -438,9 +427,14 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
         robosuite's step, except that an action with NaN or inf is not executed: it ends the episode with
         info["physics_error"] naming it, as a physics blow-up does (OSC turned it into a limp, falling arm).
         """
+        values = np.asarray(action)
+        if values.dtype.kind not in "iuf" or values.shape != (self.action_dim,):
+            raise ValueError(
+                f"an action must be {self.action_dim} real numbers (env.action_spec), got {values.dtype} values of "
+                f"shape {values.shape}"
+            )
         if self._restored_start:
             self.hold_restored_pose()
-        values = np.asarray(action, dtype=float)
         if np.isfinite(values).all() or self.done:
             return super().step(action)
         bad = np.flatnonzero(~np.isfinite(values)).tolist()
@@ -514,6 +508,7 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
         place and turn, initialization noise) depends on that seed alone, whatever episodes came before.
         """
         if seed is not None:
+            check_arguments({"seed": seed})
             self.rng = np.random.default_rng(seed)
         obs = super().reset()
         self._badqacc_seen = instability_warnings(self.sim.data)

@@ -165,7 +165,9 @@ def parse_agent_argument(text: str) -> tuple[str, str]:
 def check_foods(foods: list[str]) -> list[str]:
     """The foods to evaluate, each known; ValueError names the accepted ones."""
     accepted = ", ".join(dict.fromkeys([*ALL_FOODS, *FOODS]))  # seen, unseen, then any registered later
-    unknown = [f for f in foods if f not in FOODS]
+    if isinstance(foods, str):
+        raise ValueError(f"foods must be a list of food names, got one name: {foods!r} (give [{foods!r}])")
+    unknown = [f for f in foods if not isinstance(f, str) or f not in FOODS]
     if unknown:
         raise ValueError(f"unknown food(s) {', '.join(unknown)}; accepted foods: {accepted}")
     if not foods:

@@ -313,6 +313,10 @@ FOODS: dict[str, FoodSpec] = {}
 
 def register_food(food: FoodSpec, overwrite: bool = False) -> FoodSpec:
     """Adds a food to the catalog so that ``robosuite.make("ScoopGranular", food=name)`` accepts it."""
+    if not isinstance(food, FoodSpec):
+        raise TypeError(
+            f"register_food takes a FoodSpec (a catalog food's spec, e.g. dataclasses.replace of one), got {food!r}"
+        )
     if food.name in FOODS and not overwrite:
         raise ValueError(f"Food {food.name!r} is already in the catalog; pass overwrite=True to replace it")
     FOODS[food.name] = food
@@ -323,7 +327,7 @@ def get_food(food: str | FoodSpec) -> FoodSpec:
     """Looks a food up by name; a FoodSpec passes through unchanged."""
     if isinstance(food, FoodSpec):
         return food
-    if food not in FOODS:
+    if not isinstance(food, str) or food not in FOODS:
         raise ValueError(f"Unknown food {food!r}; accepted foods: {', '.join(sorted(FOODS))}")
     return FOODS[food]
 

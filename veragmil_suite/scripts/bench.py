@@ -29,8 +29,8 @@ import robosuite
 
 import veragmil_suite  # noqa: F401  (registers ScoopGranular)
 from veragmil_suite.devices.expert import ScriptedScooper
+from veragmil_suite.environments.arguments import MAX_GRAINS_PER_DEFAULT
 from veragmil_suite.environments.episode import run_until_done
-from veragmil_suite.environments.scoop import MAX_GRAINS_PER_DEFAULT
 from veragmil_suite.models.foods import DEFAULT_PHYSICS, FOODS, TRAINING_FOODS
 from veragmil_suite.models.scoop_task import GRAIN_SLEEP_TOLERANCE
 from veragmil_suite.utils import cli

@@ -11,6 +11,7 @@ from dataclasses import MISSING, dataclass, field
 from typing import Any
 
 from veragmil_suite.devices.expert import get_profile
+from veragmil_suite.environments.arguments import check_grain_count
 from veragmil_suite.evaluation.agents import SPEC_HELP, parse_agent_argument, parse_spec
 from veragmil_suite.learning.algorithms import ALGORITHMS
 from veragmil_suite.learning.observation_sets import (
@@ -21,6 +22,7 @@ from veragmil_suite.learning.observation_sets import (
 from veragmil_suite.models.foods import DEFAULT_PHYSICS, TRAINING_FOODS, UNSEEN_FOODS, check_physics, get_food
 from veragmil_suite.models.humanoid import check_robot
 from veragmil_suite.utils import cli
+from veragmil_suite.utils.numbers import is_whole
 
 # Seeds of recorded episodes and of evaluation episodes never meet: evaluation bowls are not training bowls.
 EVAL_SEED_OFFSET = 100_000
@@ -223,6 +225,10 @@ class PipelineSettings:
     ray: str | None = None
 
     def __post_init__(self):
+        for name in ("train_foods", "eval_foods", "profiles", "algos"):
+            value = getattr(self, name)
+            if isinstance(value, str) or not isinstance(value, (list, tuple)) or not value:
+                raise ValueError(f"{name} must be a non-empty list of names, got {value!r}")
         for food in [*self.train_foods, *self.eval_foods]:
             get_food(food)  # a ValueError naming the accepted foods
         check_physics(self.physics)
@@ -236,8 +242,12 @@ class PipelineSettings:
             self.demos_per_food = [self.demos_per_food]
         self.demos_per_food = sorted(set(int(n) for n in self.demos_per_food))
         for name in ("epochs", "steps_per_epoch", "episodes", "processes", "horizon"):
-            if int(getattr(self, name)) < 1:
+            if not (is_whole(getattr(self, name)) and getattr(self, name) >= 1):
                 raise ValueError(f"{name} must be a positive integer, got {getattr(self, name)!r}")
+        if not (is_whole(self.seed) and self.seed >= 0):
+            raise ValueError(f"seed must be a non-negative integer, got {self.seed!r}")
+        for food in dict.fromkeys([*self.train_foods, *self.eval_foods]):
+            check_grain_count(self.n_grains, get_food(food), self.physics)
         if not self.demos_per_food or self.demos_per_food[0] < 1:
             raise ValueError(f"demos_per_food must be positive integers, got {self.demos_per_food!r}")
         unknown = sorted(set(self.algo_epochs) - set(ALGORITHMS))

@@ -27,10 +27,12 @@ from robosuite.wrappers.gym_wrapper import GymWrapper
 
 from veragmil_suite.controllers.scoop_config import load_scoop_controller_config
 from veragmil_suite.data.recording import EpisodeRecorder
+from veragmil_suite.environments.arguments import check_arguments
 from veragmil_suite.environments.episode import SUCCESS_HOLD_S, SuccessHold
 from veragmil_suite.environments.scoop import ScoopGranular
 from veragmil_suite.learning import robomimic_obs
 from veragmil_suite.models.foods import FoodSpec
+from veragmil_suite.utils.numbers import is_whole
 
 GYM_ENV_ID = "veragmil/ScoopGranular-v0"
 # "state": one flat float64 vector (object-state, then each robot's proprio-state, robosuite's GymWrapper keys);
@@ -87,6 +89,10 @@ class ScoopGranularGymEnv(GymWrapper):
             )
         if "use_camera_obs" in env_kwargs:
             raise ValueError("use_camera_obs is set by obs_mode: obs_mode='pixels' adds camera images")
+        check_arguments({"robots": robots, **env_kwargs})
+        sizes = list(render_size) if isinstance(render_size, (tuple, list)) else []
+        if len(sizes) != 2 or not all(is_whole(size) and size > 0 for size in sizes):
+            raise ValueError(f"render_size must be (height, width), two positive integers, got {render_size!r}")
         pixels = obs_mode == "pixels"
         kwargs = dict(
             robots=robots,

@@ -16,7 +16,8 @@ from typing import Any
 from robosuite.controllers import ALL_COMPOSITE_CONTROLLERS
 
 from veragmil_suite.controllers.scoop_config import ARM_CONTROLLERS
-from veragmil_suite.environments.scoop import MAX_GRAINS_PER_DEFAULT, ScoopGranular
+from veragmil_suite.environments.arguments import MAX_GRAINS_PER_DEFAULT
+from veragmil_suite.environments.scoop import ScoopGranular
 from veragmil_suite.evaluation.agents import SPEC_HELP, parse_agent_argument, parse_spec
 from veragmil_suite.models.foods import DEFAULT_PHYSICS, FOODS, PHYSICS
 from veragmil_suite.models.scoop_task import PHYSICS_TIMESTEP_S, check_physics_timestep, check_sleep_tolerance
