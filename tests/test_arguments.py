@@ -44,6 +44,7 @@ BAD_KWARGS = [
     ("seed", "x", "seed must be None or a non-negative integer, got 'x'"),
     ("pre_scoop_offset", (1, 2), "pre_scoop_offset must be 3 finite numbers, got (1, 2)"),
     ("camera_names", [], "camera_names must be a name or a list of names"),
+    ("camera_names", ["nonexistent"], "no camera 'nonexistent' in this scene; its cameras: frontview, "),
     ("use_object_obs", "yes", "use_object_obs must be True or False, got 'yes'"),
     ("food", ["rice"], "Unknown food ['rice']; accepted foods: "),
 ]

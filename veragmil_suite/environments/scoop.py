@@ -335,6 +335,13 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
         if self.humanoid is not None:
             for body1, body2 in self_contact_excludes(robot_model.worldbody):
                 self.model.contact.append(new_element("exclude", name=None, body1=body1, body2=body2))
+        # robosuite would refuse an unknown camera only at its observables, naming the observable, not the camera
+        cameras = [camera.get("name") for camera in self.model.worldbody.iter("camera")]
+        unknown = [name for name in self.camera_names if name not in cameras]
+        if unknown:
+            raise ValueError(
+                f"no camera {', '.join(map(repr, unknown))} in this scene; its cameras: {', '.join(cameras)}"
+            )
 
     @property
     def solver_options(self) -> dict:
