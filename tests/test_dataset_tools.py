@@ -58,7 +58,10 @@ def test_info_reports_demos_foods_success_and_obs(files, capsys):
 def test_merge_renumbers_and_keeps_each_demos_provenance(files, tmp_path, capsys):
     pasta, rice = files
     merged = tmp_path / "merged.hdf5"
+    killed = tmp_path / ".merged.hdf5.deadbeef.writing"  # what a merge killed before this one left
+    killed.write_bytes(b"half a merge")
     assert merge_main([str(pasta), str(rice), "--output", str(merged)]) == 0
+    assert not killed.exists()  # the file's next write removes it
     with open_dataset(merged) as f:
         data = f["data"]
         assert sorted(data.keys()) == ["demo_0", "demo_1", "demo_2", "demo_3"]

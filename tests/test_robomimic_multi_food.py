@@ -81,7 +81,10 @@ def test_robomimics_states_to_obs_extracts_every_demo_and_keeps_its_attributes(m
     size = CAMERA_SIZE // 2  # camera settings of robomimic's processing, which each demo's env_args take
     cameras = ["--camera_names", "overhead", "--camera_height", size, "--camera_width", size]
     args = ["--dataset", dataset, "--output_name", "extracted.hdf5", "--done_mode", "2", *cameras]
+    killed = tmp_path / ".extracted.hdf5.deadbeef.writing"  # a killed run's working copy: this run removes it
+    killed.write_bytes(b"half an extraction")
     out = run_program("veragmil-robomimic-states-to-obs", *args, cwd=tmp_path).stdout
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".extracted")) == []
     assert f"kept the recorded {', '.join(robomimic_obs.TORQUE_DEPENDENT_OBSERVATIONS)}" in out
     with h5py.File(dataset) as ours, h5py.File(tmp_path / "extracted.hdf5") as theirs:
         assert (

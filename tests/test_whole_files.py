@@ -4,7 +4,13 @@ import os
 
 import pytest
 
-from veragmil_suite.utils.whole_files import same_file, write_text_whole, written_whole
+from veragmil_suite.utils.whole_files import (
+    put_folder_in_place,
+    recover_folder,
+    same_file,
+    write_text_whole,
+    written_whole,
+)
 
 
 def test_a_write_cut_short_leaves_the_file_that_was_there_and_no_temporary_one(tmp_path):
@@ -56,3 +62,21 @@ def test_a_block_that_wrote_nothing_leaves_the_file_as_it_was(tmp_path):
     with written_whole(path, keep_suffix=True):
         pass  # no demo selected: nothing rendered
     assert path.read_bytes() == b"an earlier video"
+
+
+def test_a_folder_put_in_place_leaves_one_complete_folder_whenever_it_is_killed(tmp_path):
+    """veragmil-export-lerobot --force: the export it replaces is set aside whole, never half deleted."""
+    output, partial = tmp_path / "export", tmp_path / ".export.partial"
+    for folder, text in ((output, "old"), (partial, "new")):
+        folder.mkdir()
+        (folder / "meta.json").write_text(text)
+    put_folder_in_place(partial, output)
+    assert (output / "meta.json").read_text() == "new" and sorted(p.name for p in tmp_path.iterdir()) == ["export"]
+    # killed between its two renames: the old export set aside, the new one not yet in place
+    output.rename(tmp_path / ".export.replaced")
+    recover_folder(output)
+    assert (output / "meta.json").read_text() == "new" and sorted(p.name for p in tmp_path.iterdir()) == ["export"]
+    # killed after the new one was put in place, before the old one was deleted
+    (tmp_path / ".export.replaced").mkdir()
+    recover_folder(output)
+    assert (output / "meta.json").read_text() == "new" and sorted(p.name for p in tmp_path.iterdir()) == ["export"]

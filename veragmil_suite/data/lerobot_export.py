@@ -39,6 +39,7 @@ from tqdm import tqdm
 from veragmil_suite.data.schema import METRIC_KEYS, DatasetError, demo_names, filter_key_demos, open_dataset
 from veragmil_suite.learning import robomimic_compat
 from veragmil_suite.learning.observation_sets import GOAL_OBSERVABLES
+from veragmil_suite.utils.whole_files import put_folder_in_place, recover_folder
 
 STATE_PREFIX = "robot0_"
 ENVIRONMENT_STATE_KEY = "object"
@@ -240,6 +241,10 @@ def export_lerobot(
     if vcodec not in VIDEO_CODECS:
         raise ValueError(f"unknown video codec {vcodec!r}; accepted: {', '.join(VIDEO_CODECS)}")
     output = Path(output)
+    # written beside ``output`` (hidden) and put in its place once complete: a failed export leaves no half dataset;
+    # what a killed export left (this name, or the export it replaced, set aside) is seen to first
+    partial = output.with_name(f".{output.name}.partial")
+    recover_folder(output)
     if output.exists() and not force:
         raise DatasetError(f"{output} exists (use --force to replace it)")
     with open_dataset(dataset) as f:
@@ -259,8 +264,6 @@ def export_lerobot(
         LeRobotDataset = _lerobot_dataset_class()
         robots = env_kwargs.get("robots", "")
         repo_id = repo_id or f"veragmil/{Path(dataset).stem}"
-        # written beside ``output`` and moved there once complete: a failed export leaves no half dataset
-        partial = output.with_name(output.name + ".partial")
         if partial.exists():
             shutil.rmtree(partial)
         writer = LeRobotDataset.create(
@@ -299,9 +302,7 @@ def export_lerobot(
             writer.finalize()
             shutil.rmtree(partial, ignore_errors=True)
             raise
-    if output.exists():
-        shutil.rmtree(output)
-    partial.rename(output)
+    put_folder_in_place(partial, output)
     return ExportSummary(
         root=output,
         repo_id=repo_id,

@@ -71,6 +71,12 @@ def working_copies(path: str | Path) -> list[Path]:
         return []
 
 
+def working_copy_path(path: str | Path) -> Path:
+    """A new working copy's name beside ``path`` (the file on disk), which working_copies finds once a kill left it."""
+    target = _on_disk(path)
+    return target.with_name(f".{_stem(target)}.{secrets.token_hex(4)}{WORKING_SUFFIX}")
+
+
 def remove_working_copies(path: str | Path) -> list[Path]:
     """Delete the working copies left beside ``path`` (call with its lock held); returns them."""
     removed = working_copies(path)
@@ -242,7 +248,7 @@ def replaced(path: str | Path, new: bool = False, lock: FileLock | None = None) 
     Change ``path`` (or, with ``new``, write it anew) as one atomic step: yields a WorkingCopy whose ``file`` is
     open for writing; at a clean exit it is flushed to disk and renamed over ``path``; at an exception, a full
     disk or an I/O error it is removed and ``path`` is as it was. The file's write lock is taken for the while
-    unless ``lock`` (held by the caller) is given.
+    unless ``lock`` (held by the caller) is given; the working copies killed writes left are removed first.
 
     Raises:
         FileInUse: [another process writes ``path``]
@@ -256,7 +262,8 @@ def replaced(path: str | Path, new: bool = False, lock: FileLock | None = None) 
     elif not lock.held:
         raise RuntimeError(f"the write lock of {path} is not held")
     target = _on_disk(path)
-    copy = target.with_name(f".{_stem(target)}.{secrets.token_hex(4)}{WORKING_SUFFIX}")
+    remove_working_copies(target)  # what writes killed before left: with the lock held, none is under way
+    copy = working_copy_path(target)
     try:
         try:
             fd = os.open(copy, os.O_RDWR | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o644)

@@ -18,7 +18,9 @@ from dataclasses import dataclass
 import h5py
 import numpy as np
 
+from veragmil_suite.data import safe_hdf5
 from veragmil_suite.data.schema import VARIANTS_KEY
+from veragmil_suite.data.writer import write_lock
 from veragmil_suite.learning import training_resume
 from veragmil_suite.learning.robomimic_obs import TORQUE_DEPENDENT_OBSERVATIONS
 from veragmil_suite.utils.canonical import canonical
@@ -27,9 +29,10 @@ from veragmil_suite.utils.canonical import canonical
 def prepare_states_to_obs_script(module: types.ModuleType) -> None:
     """
     Patches the namespace of robomimic.scripts.dataset_states_to_obs (imported, not yet run) for one run: its
-    output is written under a temporary name beside it and renamed once complete (a failed run leaves the output
-    as it was), each demo keeps the input's attributes (see _carry_attributes) and its recorded torque-dependent
-    observations (see _carry_recorded_observations).
+    output is written, under its write lock, as a working copy beside it, renamed onto it once complete (a failed
+    run leaves the output as it was; a killed one's copy is reported by veragmil-dataset-info and removed by --clean
+    or the next write), and each demo keeps the input's attributes (see _carry_attributes) and its recorded
+    torque-dependent observations (see _carry_recorded_observations).
     """
     robomimic_states_to_obs = getattr(module.dataset_states_to_obs, "__wrapped__", module.dataset_states_to_obs)
 
@@ -37,22 +40,29 @@ def prepare_states_to_obs_script(module: types.ModuleType) -> None:
     def dataset_states_to_obs(args):
         folder = os.path.dirname(args.dataset)
         output = os.path.join(folder, args.output_name)
-        partial = os.path.join(os.path.dirname(output), f".{os.path.basename(output)}.{os.getpid()}.partial")
-        args.output_name = os.path.relpath(partial, folder or ".")
-        try:
-            robomimic_states_to_obs(args)
-            _carry_attributes(args.dataset, partial)
-            carried = _carry_recorded_observations(args.dataset, partial)
-            if carried:
-                print(f"kept the recorded {', '.join(carried)}: they read a step's torques, not its state")
-            os.replace(partial, output)
-            print(f"renamed {os.path.basename(partial)} to {output} (written under that name until complete)")
-        finally:
-            args.output_name = os.path.relpath(output, folder or ".")
-            if os.path.exists(partial):
-                os.remove(partial)
+        with write_lock(output):
+            safe_hdf5.remove_working_copies(output)  # what killed runs left
+            _states_to_obs_whole(robomimic_states_to_obs, args, folder, output)
 
     module.dataset_states_to_obs = dataset_states_to_obs
+
+
+def _states_to_obs_whole(robomimic_states_to_obs, args, folder: str, output: str) -> None:
+    """robomimic's dataset_states_to_obs writing a working copy of ``output``, renamed onto it once complete."""
+    partial = str(safe_hdf5.working_copy_path(output))
+    args.output_name = os.path.relpath(partial, folder or ".")
+    try:
+        robomimic_states_to_obs(args)
+        _carry_attributes(args.dataset, partial)
+        carried = _carry_recorded_observations(args.dataset, partial)
+        if carried:
+            print(f"kept the recorded {', '.join(carried)}: they read a step's torques, not its state")
+        os.replace(partial, os.path.realpath(output))  # a link's file, as safe_hdf5 replaces
+        print(f"renamed {os.path.basename(partial)} to {output} (written under that name until complete)")
+    finally:
+        args.output_name = os.path.relpath(output, folder or ".")
+        if os.path.exists(partial):
+            os.remove(partial)
 
 
 def _carry_attributes(source: str, output: str) -> None:

@@ -65,8 +65,8 @@ def format_summary(s: dict, verbose: bool = False) -> str:
     if s["interrupted_writes"]:
         lines.append(
             f"  INTERRUPTED WRITES (not part of the dataset): {', '.join(s['interrupted_writes'])}; each was a write "
-            "cut short (killed, disk full or an I/O error): the episode it was writing is lost, every demo above is "
-            "complete; veragmil-dataset-info --clean removes them"
+            "cut short (killed, disk full or an I/O error): what it was writing (an episode, a merge, a copy) is lost, "
+            "every demo above is complete; veragmil-dataset-info --clean or the file's next write removes them"
         )
     for name, problems in s.get("problems", {}).items():
         lines.append(f"  FLAGGED {name}: {'; '.join(problems)}")

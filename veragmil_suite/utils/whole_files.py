@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -54,3 +55,29 @@ def write_text_whole(path: str | Path, text: str) -> None:
     """``path`` holds ``text``, written whole (written_whole)."""
     with written_whole(path) as partial:
         partial.write_text(text)
+
+
+def _aside(folder: Path) -> Path:
+    return folder.with_name(f".{folder.name}.replaced")
+
+
+def put_folder_in_place(partial: str | Path, folder: str | Path) -> None:
+    """Moves the complete folder ``partial`` to ``folder``. The folder it replaces is set aside whole first and
+    deleted after: a kill at any instant leaves one of the two complete, which recover_folder puts in place."""
+    partial, folder = Path(partial), Path(folder)
+    if folder.exists():
+        folder.rename(_aside(folder))
+    partial.rename(folder)
+    shutil.rmtree(_aside(folder), ignore_errors=True)
+
+
+def recover_folder(folder: str | Path) -> None:
+    """What a kill in put_folder_in_place left: the replaced folder back in place when nothing took its place,
+    otherwise deleted."""
+    folder = Path(folder)
+    aside = _aside(folder)
+    if aside.exists():
+        if folder.exists():
+            shutil.rmtree(aside)
+        else:
+            aside.rename(folder)
