@@ -105,19 +105,24 @@ def _flag(name: str, value: Any) -> None:
 
 
 def _solver_options(name: str, value: Any) -> None:
+    """MuJoCo <option> attributes, as text (as the MJCF has them) or numbers: the counts whole and >= 0, the ratios
+    and tolerances positive."""
     if value is None:
         return
     if not isinstance(value, dict) or not all(isinstance(key, str) for key in value):
         raise _refuse(name, "None or a dict of MuJoCo <option> attributes", value)
     for key, option in value.items():
-        if key in ("iterations", "ls_iterations", "noslip_iterations", "ccd_iterations") and not (
-            is_whole(option) and option >= 0
-        ):
-            raise _refuse(f"{name}[{key!r}]", "a non-negative integer", option)
-        if key in ("impratio", "tolerance", "ls_tolerance", "noslip_tolerance") and not (
-            is_number(option) and option > 0
-        ):
-            raise _refuse(f"{name}[{key!r}]", "a positive number", option)
+        text = str(option).strip() if isinstance(option, str) or is_number(option) else ""
+        if key in ("iterations", "ls_iterations", "noslip_iterations", "ccd_iterations"):
+            if not text.isdigit():
+                raise _refuse(f"{name}[{key!r}]", "a non-negative integer", option)
+        elif key in ("impratio", "tolerance", "ls_tolerance", "noslip_tolerance"):
+            try:
+                number = float(text)
+            except ValueError:
+                number = math.nan
+            if not (math.isfinite(number) and number > 0):
+                raise _refuse(f"{name}[{key!r}]", "a positive number", option)
 
 
 # each argument's check: (name, value) -> None, raising ValueError. The food, physics, robot's name, grain count's
