@@ -46,6 +46,7 @@ BAD_KWARGS = [
     ("camera_names", [], "camera_names must be a name or a list of names"),
     ("camera_names", ["nonexistent"], "no camera 'nonexistent' in this scene; its cameras: frontview, "),
     ("use_object_obs", "yes", "use_object_obs must be True or False, got 'yes'"),
+    ("controller_configs", "bogus", "controller_configs must be None (the task's OSC_POSE) or a robosuite controller"),
     ("food", ["rice"], "Unknown food ['rice']; accepted foods: "),
 ]
 

@@ -99,6 +99,11 @@ def _robots(name: str, value: Any) -> None:
         raise _refuse(name, "one robot's name (the task has one spoon arm), e.g. 'XArm7'", value)
 
 
+def _controller(name: str, value: Any) -> None:
+    if value is not None and not isinstance(value, dict):
+        raise _refuse(name, "None (the task's OSC_POSE) or a robosuite controller config dict", value)
+
+
 def _flag(name: str, value: Any) -> None:
     if not isinstance(value, bool):
         raise _refuse(name, "True or False", value)
@@ -130,6 +135,7 @@ def _solver_options(name: str, value: Any) -> None:
 # robots, the task model).
 CHECKS: dict[str, Callable[[str, Any], None]] = {
     "robots": _robots,
+    "controller_configs": _controller,
     "n_grains": _grains,
     "pile_variants": _positive_whole,
     "bowl_x_range": _range,
