@@ -25,6 +25,7 @@ BAD_KWARGS = [
     ("reward_scale", "x", "reward_scale must be a finite number, got 'x'"),
     ("success_pos_tolerance", -1, "success_pos_tolerance must be a finite number in (0, inf), got -1"),
     ("success_tilt_tolerance_deg", 200, "in (0, 180]"),
+    ("success_max_speed", "fast", "success_max_speed must be a finite number in (0, inf), got 'fast'"),
     ("max_spill_fraction", -0.1, "max_spill_fraction must be a finite number in [0, 1], got -0.1"),
     ("min_portion_cm3", -1, "min_portion_cm3 must be a finite number in [0, inf)"),
     ("min_portion_fraction", 0, "min_portion_fraction must be a finite number in (0, 1]"),

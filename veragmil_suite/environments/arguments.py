@@ -26,9 +26,11 @@ def _number(low: float, high: float = math.inf, open_low: bool = True, open_high
     accepted = f"a finite number in {left}{low:g}, {high:g}{right}"
 
     def check(name: str, value: Any) -> None:
+        if not is_number(value):
+            raise _refuse(name, accepted, value)
         inside_low = value > low if open_low else value >= low
         inside_high = value < high if open_high else value <= high
-        if not (is_number(value) and inside_low and inside_high):
+        if not (inside_low and inside_high):
             raise _refuse(name, accepted, value)
 
     return check
