@@ -3,16 +3,16 @@ log file and shown as a progress bar."""
 
 from __future__ import annotations
 
-import contextlib
-import multiprocessing
+import importlib
 import os
+import pickle
 import re
 import signal
 import subprocess
 import sys
 import time
 import traceback
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -73,25 +73,18 @@ def run_logged_call(
     what: str,
     progress: LogProgress | None = None,
 ) -> float:
-    """Calls ``function(**kwargs)`` in a fresh interpreter (a spawned process: MuJoCo, rendering and worker pools of
-    its own), its output in ``log_path`` as ``run_logged``'s; returns its wall time, raises StageError when it
-    raises. ``function`` must be importable by name (a module-level function)."""
-    start = time.perf_counter()
+    """Calls ``function(**kwargs)`` in a fresh interpreter (MuJoCo, rendering, worker pools and a multiprocessing
+    resource tracker of its own, whose warnings land in the log too), its output in ``log_path`` as ``run_logged``'s;
+    returns its wall time, raises StageError when it raises. ``function`` must be importable by name (a module-level
+    function); the call travels pickled in a hidden file beside the log."""
     log_path = Path(log_path)
-    log_path.write_text("")
-    child = multiprocessing.get_context("spawn").Process(target=_logged_call, args=(function, kwargs, str(log_path)))
-    with _environ(child_environ()):
-        child.start()
+    call = log_path.with_name(f".{log_path.name}.call")
+    module, name = function.__module__, function.__qualname__
+    call.write_bytes(pickle.dumps(dict(path=sys.path, module=module, name=name, kwargs=pickle.dumps(kwargs))))
     try:
-        if progress is not None:
-            _follow(lambda: child.exitcode, log_path, progress)
-        child.join()
-    except BaseException:  # interrupted (Ctrl-C, SIGTERM): the stage goes too
-        stop_tree(child.pid)
-        child.join()
-        raise
-    _check_exit(child.exitcode, log_path, what)
-    return time.perf_counter() - start
+        return run_logged([sys.executable, "-m", __name__, str(call)], log_path, what, progress=progress)
+    finally:
+        call.unlink(missing_ok=True)
 
 
 def child_environ(extra: dict[str, str] | None = None) -> dict[str, str]:
@@ -103,41 +96,22 @@ def child_environ(extra: dict[str, str] | None = None) -> dict[str, str]:
     return env
 
 
-@contextlib.contextmanager
-def _environ(env: dict[str, str]) -> Iterator[None]:
-    """This process's environment holding ``env``'s values for the block (a spawned child inherits it at start);
-    only the variables ``env`` changes or adds are touched, and put back after."""
-    changed = {key: value for key, value in env.items() if os.environ.get(key) != value}
-    saved = {key: os.environ.get(key) for key in changed}
-    os.environ.update(changed)
-    try:
-        yield
-    finally:
-        for key, value in saved.items():
-            if value is None:
-                os.environ.pop(key, None)
-            else:
-                os.environ[key] = value
-
-
-def _logged_call(function: Callable[..., object], kwargs: dict, log_path: str) -> None:
-    """The child of run_logged_call: its standard output and error (Python's and C's) go to the log; an exception
-    is logged and exits 1."""
-    with open(log_path, "a") as log, open(os.devnull) as nothing:
-        os.dup2(log.fileno(), 1)
-        os.dup2(log.fileno(), 2)
-        os.dup2(nothing.fileno(), 0)
+def _call(call_path: str) -> None:
+    """The interpreter run_logged_call starts: the pickled call of ``call_path``, its standard output and error (the
+    log) line-buffered; an exception is logged and exits 1."""
+    call = pickle.loads(Path(call_path).read_bytes())
+    sys.path[:0] = [entry for entry in call["path"] if entry not in sys.path]  # the caller's, for its function
     sys.stdout.reconfigure(line_buffering=True)
     sys.stderr.reconfigure(line_buffering=True)
     # stopped by the study (stop_tree) or Ctrl-C (the terminal's, to the whole process group): the function unwinds,
     # its pools and writes closed. Either signal after it is ignored: it would break off multiprocessing's exit
-    # clean-up, which unlinks the pools' semaphores, and the study's resource tracker would report them as leaked
-    # under the study's last line (the study stops this process itself)
+    # clean-up, which unlinks the pools' semaphores (the study stops this process itself)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
     try:
         try:
             with sigterm_raises():
-                function(**kwargs)
+                function = getattr(importlib.import_module(call["module"]), call["name"])
+                function(**pickle.loads(call["kwargs"]))
         finally:
             signal.signal(signal.SIGINT, signal.SIG_IGN)
     except BaseException:
@@ -181,3 +155,7 @@ def console(name: str) -> list[str]:
     }
     command = [sys.executable, "-m", modules[name]]
     return [*command, "train"] if name == "veragmil-train" else command
+
+
+if __name__ == "__main__":
+    _call(sys.argv[1])

@@ -49,6 +49,9 @@ def stop_tree(pid: int, timeout_s: float = 10.0) -> None:
         under = root.children(recursive=True)  # listed before any goes: an orphan is no one's child
     except psutil.NoSuchProcess:
         return
+    # a multiprocessing resource tracker is left to end on its own once those it serves are gone: it then unlinks
+    # the semaphores they leave (killed, it would leave them on /dev/shm)
+    under = [process for process in under if not _is_resource_tracker(process)]
     for process in under:
         with contextlib.suppress(psutil.NoSuchProcess):
             process.kill()
@@ -58,3 +61,10 @@ def stop_tree(pid: int, timeout_s: float = 10.0) -> None:
         _, alive = psutil.wait_procs([root], timeout=timeout_s)
         for process in alive:
             process.kill()
+
+
+def _is_resource_tracker(process: psutil.Process) -> bool:
+    try:
+        return any("multiprocessing.resource_tracker" in part for part in process.cmdline())
+    except psutil.Error:
+        return False
