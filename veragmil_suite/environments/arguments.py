@@ -106,6 +106,18 @@ def _controller(name: str, value: Any) -> None:
         raise _refuse(name, "None (the task's OSC_POSE) or a robosuite controller config dict", value)
 
 
+# the slowest control rate accepted: a control period longer than a second is neither teleoperation nor a policy,
+# and robosuite runs period / physics step substeps per control step (control_freq=1e-9 would never return)
+MIN_CONTROL_FREQ_HZ = 1.0
+
+
+def _control_freq(name: str, value: Any) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (MIN_CONTROL_FREQ_HZ <= value < math.inf):
+        raise _refuse(
+            name, f"a number of Hz of at least {MIN_CONTROL_FREQ_HZ:g} (20 Hz default, 60 Hz as in the paper)", value
+        )
+
+
 def _flag(name: str, value: Any) -> None:
     if not isinstance(value, bool):
         raise _refuse(name, "True or False", value)
@@ -133,8 +145,8 @@ def _solver_options(name: str, value: Any) -> None:
 
 
 # each argument's check: (name, value) -> None, raising ValueError. The food, physics, robot's name, grain count's
-# limit, control rate, physics step, sleep tolerance and spill limit have theirs where their catalogs are (foods,
-# robots, the task model).
+# limit, physics step, sleep tolerance and spill limit have theirs where their catalogs are (foods, robots, the task
+# model).
 CHECKS: dict[str, Callable[[str, Any], None]] = {
     "robots": _robots,
     "controller_configs": _controller,
@@ -154,6 +166,7 @@ CHECKS: dict[str, Callable[[str, Any], None]] = {
     "reward_scale": _optional(_finite),
     "physics_solver_options": _solver_options,
     "horizon": _positive_whole,
+    "control_freq": _control_freq,
     "camera_names": _names,
     "camera_heights": _per_camera,
     "camera_widths": _per_camera,

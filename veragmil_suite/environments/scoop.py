@@ -54,10 +54,6 @@ from veragmil_suite.models.spoon_gripper import spoon_contact
 from veragmil_suite.utils.kinematics import quat_mul_wxyz
 from veragmil_suite.utils.sim_xml import keep_sim_xml
 
-# the slowest control rate accepted: a control period longer than a second is neither teleoperation nor a policy,
-# and robosuite runs period / physics step substeps per control step (control_freq=1e-9 would never return)
-MIN_CONTROL_FREQ_HZ = 1.0
-
 
 class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, ManipulationEnv):
     """
@@ -203,15 +199,6 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
         ):
             if not -half <= rng_range[0] <= rng_range[1] <= half:
                 raise ValueError(f"{label} must lie on the table, within +-{half:g} m of its centre, got {rng_range!r}")
-        if (
-            isinstance(control_freq, bool)
-            or not isinstance(control_freq, (int, float))
-            or not (MIN_CONTROL_FREQ_HZ <= control_freq < float("inf"))
-        ):
-            raise ValueError(
-                f"control_freq must be a number of Hz of at least {MIN_CONTROL_FREQ_HZ:g} (20 Hz default, 60 Hz as in "
-                f"the paper), got {control_freq!r}"
-            )
         self.bowl_shape = bowl_shape
         self.bowl_x_range = tuple(bowl_x_range)
         self.bowl_y_range = tuple(bowl_y_range)

@@ -89,7 +89,7 @@ class ScoopGranularGymEnv(GymWrapper):
             )
         if "use_camera_obs" in env_kwargs:
             raise ValueError("use_camera_obs is set by obs_mode: obs_mode='pixels' adds camera images")
-        check_arguments({"robots": robots, **env_kwargs})
+        check_arguments({"robots": robots})  # the rest are ScoopGranular's to check, at make
         sizes = list(render_size) if isinstance(render_size, (tuple, list)) else []
         if len(sizes) != 2 or not all(is_whole(size) and size > 0 for size in sizes):
             raise ValueError(f"render_size must be (height, width), two positive integers, got {render_size!r}")
@@ -104,7 +104,8 @@ class ScoopGranularGymEnv(GymWrapper):
         kwargs.update(env_kwargs)
         if kwargs.get("controller_configs") is None:
             # the env's own default, spelled out: datasets store the controller they were driven with
-            kwargs["controller_configs"] = load_scoop_controller_config("OSC_POSE", robot=robots)
+            robot = robots if isinstance(robots, str) else robots[0]
+            kwargs["controller_configs"] = load_scoop_controller_config("OSC_POSE", robot=robot)
         # the robosuite.make arguments (JSON-serializable with a catalog food): schema.env_meta's input
         self.env_kwargs = kwargs
         env = robosuite.make(ScoopGranular.__name__, **kwargs)

@@ -12,7 +12,7 @@ from typing import Any
 from robosuite.models.robots import XArm7
 
 from veragmil_suite.devices.expert import PROFILES
-from veragmil_suite.environments.scoop import MIN_CONTROL_FREQ_HZ
+from veragmil_suite.environments.arguments import MIN_CONTROL_FREQ_HZ
 from veragmil_suite.learning import robomimic_compat
 from veragmil_suite.learning.algorithms import ALGORITHMS
 from veragmil_suite.learning.observation_sets import OBSERVATION_SETS
