@@ -86,6 +86,12 @@ CASES = [
     ("veragmil-train", ["--algo", "nonexistent"], "unknown robomimic algorithm 'nonexistent'; accepted: bc, bcq, "),
     ("veragmil-train", ["--config", "{tmp}/bogus_key.json"], "key 'bogus_key' does not exist"),
     ("veragmil-train", ["--config", "{tmp}/bogus_algo.json"], "algo_name 'gail' is not one of robomimic's: bc, "),
+    ("veragmil-train", ["--config", "{tmp}/no_data.json"],
+     "give --dataset FILE (a robomimic dataset), or name it in the config's train.data"),
+    ("veragmil-train", ["--algo", "bc"], "give --dataset FILE (a robomimic dataset), or name it in the config's"),
+    ("veragmil-train", ["--config", "{tmp}/epochs.json"], "train.num_epochs is -3: it must be a whole number of at"),
+    ("veragmil-train", ["--config", "{tmp}/batch.json"], "train.batch_size is 'abc': it must be a whole number of at"),
+    ("veragmil-train", ["--config", "{tmp}/flag.json"], "train.hdf5_normalize_obs is 'yes': it must be true or false"),
     ("veragmil-train", ["--config", "{tmp}/wrench.json", "--dataset", SAMPLE],
      "scoop.hdf5 holds no robot0_eef_force, robot0_eef_torque observations, which {tmp}/wrench.json trains on; record"),
     ("veragmil-run-agent", ["--agent", "{missing}", "--n_rollouts", "1"], "no such file"),
@@ -151,6 +157,10 @@ def _bad_files(folder: Path) -> None:
     (folder / "bad.json").write_text("{not json")
     (folder / "bogus_key.json").write_text('{"algo_name": "bc", "bogus_key": 1}')
     (folder / "bogus_algo.json").write_text('{"algo_name": "gail"}')
+    (folder / "epochs.json").write_text('{"algo_name": "bc", "train": {"num_epochs": -3}}')
+    (folder / "batch.json").write_text('{"algo_name": "bc", "train": {"batch_size": "abc"}}')
+    (folder / "flag.json").write_text('{"algo_name": "bc", "train": {"hdf5_normalize_obs": "yes"}}')
+    (folder / "no_data.json").write_text('{"algo_name": "bc"}')
     low_dim = ["robot0_eef_pos", "robot0_eef_force", "robot0_eef_torque"]  # the wrist sensor: scoop.hdf5 lacks it
     wrench = {"algo_name": "bc", "observation": {"modalities": {"obs": {"low_dim": low_dim}}}}
     (folder / "wrench.json").write_text(json.dumps(wrench))

@@ -165,10 +165,11 @@ def check_args(module_name: str, args: argparse.Namespace) -> None:
             raise UsageError("give --config FILE (a robomimic config) or --algo NAME (its default config)")
         if args.config is not None and args.algo is not None:
             raise UsageError("give --config or --algo, not both (the config names its algorithm)")
-        if args.dataset is None and args.config is not None:
-            data = cli.json_file(args.config).get("train", {}).get("data")
-            if data is not None:
-                cli.check_option("--config's train.data", data, cli.robomimic_dataset)
+        if args.dataset is None:
+            data = cli.json_file(args.config).get("train", {}).get("data") if args.config is not None else None
+            if data is None:
+                raise UsageError("give --dataset FILE (a robomimic dataset), or name it in the config's train.data")
+            cli.check_option("--config's train.data", data, cli.robomimic_dataset)
         if args.config is not None:
             check_observations_recorded(args.config, args.dataset)
     if module_name == "robomimic.scripts.playback_dataset" and args.use_obs:

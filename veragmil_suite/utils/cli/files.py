@@ -14,6 +14,7 @@ from typing import Any
 import h5py
 
 from veragmil_suite.learning.checkpoints import read_checkpoint
+from veragmil_suite.learning.config_values import value_problem
 from veragmil_suite.utils.cli.kinds import Kind, robomimic_algos
 
 # Suffixes our writers append to an output's name while it is written (datasets.py: ".partial"; pipeline.py:
@@ -188,7 +189,8 @@ def _robomimic_hdf5(path: str) -> None:
 
 
 def _robomimic_config(path: str) -> None:
-    """A robomimic config file: JSON whose algo_name robomimic knows, and whose keys its config of that algo has."""
+    """A robomimic config file: JSON whose algo_name robomimic knows, whose keys its config of that algo has, and whose
+    values it can train with (veragmil_suite.learning.config_values)."""
     config = _json_value(path)
     if not isinstance(config, dict):
         raise ValueError("a robomimic config is a JSON object")
@@ -198,11 +200,15 @@ def _robomimic_config(path: str) -> None:
     from robomimic.config import config_factory  # heavy: robomimic, imports torch
 
     base = config_factory(config["algo_name"])
+    defaults = json.loads(base.dump())  # a copy: update() writes into the config's own nodes
     try:
         with base.values_unlocked():
             base.update(config)
     except (RuntimeError, KeyError, AttributeError) as error:
         raise ValueError(one_line(error)) from None
+    problem = value_problem(config, defaults)
+    if problem:
+        raise ValueError(problem)
 
 
 CHECKPOINT_KEYS = ("algo_name", "config", "env_metadata", "shape_metadata", "model")
