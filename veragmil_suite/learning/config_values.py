@@ -18,25 +18,34 @@ from veragmil_suite.utils.numbers import is_number, is_whole
 
 @dataclass(frozen=True)
 class Bound:
-    """A number a key must hold: ``whole`` or real, at least ``low`` (or above it when ``strict``), ``None`` allowed
-    where robomimic reads it as "off" or "a full pass"."""
+    """A number a key must hold: ``whole`` or real, at least ``low`` (or above it when ``strict``), at most ``high``,
+    ``None`` allowed where robomimic reads it as "off" or "a full pass"."""
 
     low: float
     whole: bool = True
     strict: bool = False
     nullable: bool = False
+    high: float | None = None
 
     def accepts(self, value: Any) -> bool:
         if value is None:
             return self.nullable
         if not (is_whole(value) if self.whole else is_number(value)):
             return False
+        if self.high is not None and value > self.high:
+            return False
         return value > self.low if self.strict else value >= self.low
 
     def describe(self) -> str:
         kind = "a whole number" if self.whole else "a finite number"
-        text = f"{kind} {'above' if self.strict else 'of at least'} {self.low:g}"
+        text = f"{kind} {'above' if self.strict else 'of at least'} {_number(self.low)}"
+        if self.high is not None:
+            text += f" and at most {_number(self.high)}"
         return text + (", or null" if self.nullable else "")
+
+
+def _number(value: float) -> str:
+    return str(int(value)) if float(value).is_integer() else f"{value:g}"
 
 
 _COUNT = Bound(1)
@@ -51,7 +60,7 @@ BOUNDS: dict[str, Bound] = {
     "train.seq_length": _COUNT,
     "train.frame_stack": _COUNT,
     "train.num_data_workers": Bound(0),
-    "train.seed": Bound(0),
+    "train.seed": Bound(0, high=2**32 - 1),  # numpy's seeds
     "experiment.epoch_every_n_steps": _COUNT_OR_NULL,
     "experiment.validation_epoch_every_n_steps": _COUNT_OR_NULL,
     "experiment.rollout.n": _COUNT,
