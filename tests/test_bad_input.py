@@ -89,6 +89,11 @@ CASES = [
     ("veragmil-train", ["--config", "{tmp}/no_data.json"],
      "give --dataset FILE (a robomimic dataset), or name it in the config's train.data"),
     ("veragmil-train", ["--algo", "bc"], "give --dataset FILE (a robomimic dataset), or name it in the config's"),
+    ("veragmil-train", ["--algo", "bc", "--dataset", SAMPLE],
+     "holds no robot0_gripper_qpos observations, which robomimic's default bc config trains on"),
+    ("veragmil-train", ["--config", "{tmp}/data_list.json"], "train.data is ['a.hdf5']: it must be a string or null"),
+    ("veragmil-train", ["--config", "{tmp}/out_file.json", "--dataset", SAMPLE],
+     "the config's train.output_dir: {tmp}/bad.json/runs: not a directory"),
     ("veragmil-train", ["--config", "{tmp}/epochs.json"], "train.num_epochs is -3: it must be a whole number of at"),
     ("veragmil-train", ["--config", "{tmp}/batch.json"], "train.batch_size is 'abc': it must be a whole number of at"),
     ("veragmil-train", ["--config", "{tmp}/flag.json"], "train.hdf5_normalize_obs is 'yes': it must be true or false"),
@@ -161,6 +166,10 @@ def _bad_files(folder: Path) -> None:
     (folder / "batch.json").write_text('{"algo_name": "bc", "train": {"batch_size": "abc"}}')
     (folder / "flag.json").write_text('{"algo_name": "bc", "train": {"hdf5_normalize_obs": "yes"}}')
     (folder / "no_data.json").write_text('{"algo_name": "bc"}')
+    (folder / "data_list.json").write_text('{"algo_name": "bc", "train": {"data": ["a.hdf5"]}}')
+    (folder / "out_file.json").write_text(
+        json.dumps({"algo_name": "bc", "train": {"output_dir": f"{folder}/bad.json/runs"}})
+    )
     low_dim = ["robot0_eef_pos", "robot0_eef_force", "robot0_eef_torque"]  # the wrist sensor: scoop.hdf5 lacks it
     wrench = {"algo_name": "bc", "observation": {"modalities": {"obs": {"low_dim": low_dim}}}}
     (folder / "wrench.json").write_text(json.dumps(wrench))

@@ -39,6 +39,7 @@ def test_every_shipped_config_holds_values_robomimic_trains_with(path):
         ({"num_data_workers": -1}, "train.num_data_workers is -1: it must be a whole number of at least 0"),
         ({"hdf5_normalize_obs": 1}, "train.hdf5_normalize_obs is 1: it must be true or false"),
         ({"hdf5_cache_mode": 3}, "train.hdf5_cache_mode is 3: it must be a string"),
+        ({"data": 5}, "train.data is 5: it must be a string or null"),
         ({"seed": 2**32}, "train.seed is 4294967296: it must be a whole number of at least 0 and at most 4294967295"),
     ],
 )

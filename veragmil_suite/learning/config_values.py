@@ -83,6 +83,17 @@ BOUNDS: dict[str, Bound] = {
 }
 
 
+# keys whose robomimic default is None but whose values have one kind, by an example of it
+OPEN_DEFAULTS: dict[str, Any] = {
+    "train.data": "",
+    "train.hdf5_filter_key": "",
+    "train.hdf5_validation_filter_key": "",
+    "train.goal_mode": "",
+    "experiment.env": "",
+    "experiment.additional_envs": [],
+}
+
+
 def _kind_of(default: Any) -> tuple[str, Any] | None:
     """What a value must be where robomimic's default is ``default``: a name for messages and a test; None where any
     value may stand (robomimic's default None, whose kind it leaves open)."""
@@ -128,6 +139,11 @@ def value_problem(config: Mapping[str, Any], defaults: Mapping[str, Any]) -> str
                 return f"{name} is {value!r}: it must be {bound.describe()}"
             continue
         known, default = _lookup(defaults, name)
+        if name in OPEN_DEFAULTS:
+            kind = _kind_of(OPEN_DEFAULTS[name])
+            if kind is not None and value is not None and not kind[1](value):
+                return f"{name} is {value!r}: it must be {kind[0]} or null"
+            continue
         kind = _kind_of(default) if known else None
         if kind is not None and value is not None and not kind[1](value):
             return f"{name} is {value!r}: it must be {kind[0]}, as robomimic's default {default!r} is"

@@ -21,6 +21,7 @@ import os
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import h5py
 
@@ -165,13 +166,14 @@ def check_args(module_name: str, args: argparse.Namespace) -> None:
             raise UsageError("give --config FILE (a robomimic config) or --algo NAME (its default config)")
         if args.config is not None and args.algo is not None:
             raise UsageError("give --config or --algo, not both (the config names its algorithm)")
+        config = training_config(args)
         if args.dataset is None:
-            data = cli.json_file(args.config).get("train", {}).get("data") if args.config is not None else None
-            if data is None:
+            if config.train.data is None:
                 raise UsageError("give --dataset FILE (a robomimic dataset), or name it in the config's train.data")
-            cli.check_option("--config's train.data", data, cli.robomimic_dataset)
-        if args.config is not None:
-            check_observations_recorded(args.config, args.dataset)
+            cli.check_option("the config's train.data", config.train.data, cli.robomimic_dataset)
+        cli.check_option("the config's train.output_dir", config.train.output_dir, cli.output_folder)
+        source = args.config if args.config is not None else f"robomimic's default {args.algo} config"
+        check_observations_recorded(config, args.dataset or config.train.data, source)
     if module_name == "robomimic.scripts.playback_dataset" and args.use_obs:
         if args.video_path is None:
             raise UsageError("--use-obs plays the stored observations back into a video: give --video_path")
@@ -183,6 +185,19 @@ def check_args(module_name: str, args: argparse.Namespace) -> None:
         with h5py.File(args.dataset, "r") as f:
             filter_key_demos(f, args.filter_key)  # DatasetError names the keys the file has
     check_outputs(module_name, args)
+
+
+def training_config(args: argparse.Namespace) -> Any:
+    """The robomimic config a training runs: its algorithm's defaults, updated by --config (already checked)."""
+    from robomimic.config import config_factory  # heavy: robomimic, imports torch
+
+    if args.config is None:
+        return config_factory(args.algo)
+    values = cli.json_file(args.config)
+    config = config_factory(values["algo_name"])
+    with config.values_unlocked():
+        config.update(values)
+    return config
 
 
 def _option(dest: str) -> str:
@@ -211,23 +226,18 @@ def check_outputs(module_name: str, args: argparse.Namespace) -> None:
         cli.refuse_existing(path, args.force)
 
 
-def check_observations_recorded(config_path: str, dataset: str | None) -> None:
-    """Refuses a config whose observations the dataset (``dataset``, else the config's train.data) does not hold:
-    robomimic would fail on the first one it reads, with a KeyError and its traceback."""
-    config = cli.json_file(config_path)
-    dataset = dataset or config.get("train", {}).get("data")
-    modalities = config.get("observation", {}).get("modalities", {}).get("obs", {})
-    keys = [key for names in modalities.values() for key in (names or [])]
-    if not isinstance(dataset, str) or not keys:
-        return
-    missing = missing_observations(dataset, keys)
+def check_observations_recorded(config: Any, dataset: str, source: str) -> None:
+    """Refuses a training config (``source`` names it) whose observations ``dataset`` does not hold: robomimic would
+    fail on the first one it reads, with a KeyError and its traceback."""
+    keys = [key for names in config.observation.modalities.obs.values() for key in (names or [])]
+    missing = missing_observations(dataset, keys) if keys else []
     if not missing:
         return
     if set(missing) <= set(WRENCH_OBSERVATIONS):
         hint = "record them with the wrist sensor (veragmil-collect --wrench; veragmil-study does for the wrench set)"
     else:
         hint = "record them, or train on observations it holds"
-    raise UsageError(f"{dataset} holds no {', '.join(missing)} observations, which {config_path} trains on; {hint}")
+    raise UsageError(f"{dataset} holds no {', '.join(missing)} observations, which {source} trains on; {hint}")
 
 
 def _command(module_name: str, prepare: Callable | None = None) -> Callable[[list[str] | None], int]:
