@@ -46,7 +46,9 @@ def calibration_scene(
     return root, world
 
 
-def run_until_rest(model, data, ids: np.ndarray, max_s: float, min_s: float = 0.3) -> tuple[bool, int]:
+def run_until_rest(
+    model: mujoco.MjModel, data: mujoco.MjData, ids: np.ndarray, max_s: float, min_s: float = 0.3
+) -> tuple[bool, int]:
     """Steps until every grain of ``ids`` is slower than REST_SPEED_M_S (at least ``min_s``, at most ``max_s`` of
     simulated time); returns (came to rest, most grains seen faster than EJECTED_SPEED_M_S at one check)."""
     start = data.time

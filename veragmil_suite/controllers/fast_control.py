@@ -10,9 +10,13 @@ controller's update is otherwise unchanged (same order, same fields); only where
 from __future__ import annotations
 
 import types
+from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
+
+if TYPE_CHECKING:
+    from robosuite.robots.robot import Robot
 
 
 def mass_matrix_index(model: mujoco.MjModel, dofs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -57,7 +61,7 @@ def _update(self, force=False):
         self.new_update = False
 
 
-def use_block_mass_matrix(robot) -> None:
+def use_block_mass_matrix(robot: Robot) -> None:
     """Makes every part controller of ``robot`` read its mass matrix as a block (see module docstring)."""
     model = robot.sim.model._model
     for controller in robot.composite_controller.part_controllers.values():

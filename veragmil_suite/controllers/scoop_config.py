@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import json
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from robosuite.controllers import load_composite_controller_config, load_part_controller_config
@@ -11,6 +12,9 @@ from robosuite.controllers.composite.composite_controller import CompositeContro
 from robosuite.controllers.parts.arm.ik import SUPPORTED_IK_ROBOTS
 
 from veragmil_suite.models.humanoid import SPOON_ARM, check_robot, humanoid_layout
+
+if TYPE_CHECKING:
+    from robosuite.controllers.parts.arm.osc import OperationalSpaceController
 
 ARM_CONTROLLERS = ("OSC_POSE", "IK_POSE")
 
@@ -23,7 +27,7 @@ ROBOSUITE_OSC_KP = 150.0
 ROBOSUITE_CONTROL_FREQ_HZ = 20.0
 
 
-def osc_speed_per_offset(kp, kd, control_period_s: float):
+def osc_speed_per_offset(kp: float | np.ndarray, kd: float | np.ndarray, control_period_s: float) -> float | np.ndarray:
     """Speed (m/s or rad/s) at which OSC_POSE moves per unit of a delta action's offset (m or rad).
 
     OSC anchors each step's goal at the pose reached and holds it for one control period, so the offset shrinks by
@@ -39,7 +43,7 @@ def osc_speed_per_offset(kp, kd, control_period_s: float):
 FREE_HEADING_KP = 0.0
 
 
-def leave_heading_free(controller) -> None:
+def leave_heading_free(controller: OperationalSpaceController) -> None:
     """
     Makes an OSC_POSE controller ignore the rotation about the world's vertical when its stiffness there is zero.
 
@@ -52,7 +56,7 @@ def leave_heading_free(controller) -> None:
         return
     update = controller.update
 
-    def update_without_heading(force=False):
+    def update_without_heading(force: bool = False) -> None:
         update(force)
         controller.J_ori[2] = 0.0
         controller.J_full[5] = 0.0
@@ -83,7 +87,7 @@ class SpoonArmController(CompositeController):
         held = (self.composite_controller_specific_config or {}).get("held_qpos", {})
         return {part: np.asarray(q, dtype=float) for part, q in held.items() if part in self.part_controllers}
 
-    def setup_action_split_idx(self):
+    def setup_action_split_idx(self) -> None:
         start = 0
         held = self.held_qpos
         for part_name, controller in self.part_controllers.items():
@@ -94,7 +98,7 @@ class SpoonArmController(CompositeController):
             self._action_split_indexes[part_name] = (start, start + width)
             start += width
 
-    def set_goal(self, all_action):
+    def set_goal(self, all_action: np.ndarray) -> None:
         held = self.held_qpos
         for part_name, controller in self.part_controllers.items():
             if part_name in held:
@@ -105,7 +109,7 @@ class SpoonArmController(CompositeController):
                 action = self.grippers[part_name].format_action(action)
             controller.set_goal(action)
 
-    def reset(self):
+    def reset(self) -> None:
         super().reset()
         for part_name, qpos in self.held_qpos.items():
             controller = self.part_controllers[part_name]
@@ -114,7 +118,7 @@ class SpoonArmController(CompositeController):
                 controller.interpolator.set_goal(controller.goal_qpos)
 
     @property
-    def action_limits(self):
+    def action_limits(self) -> tuple[np.ndarray, np.ndarray]:
         low, high = [], []
         held = self.held_qpos
         for part_name, controller in self.part_controllers.items():
@@ -200,7 +204,7 @@ class UntunedControllerWarning(UserWarning):
     for (load_scoop_controller_config): the same action moves the spoon differently."""
 
 
-def untuned_controller_difference(config, robot: str) -> str:
+def untuned_controller_difference(config: Any, robot: str) -> str:
     """
     What makes ``config`` (a composite controller config, or a robosuite <= 1.4 arm part config) differ from the
     closest of load_scoop_controller_config's configs for ``robot``, in one sentence; "" when it is one of them.

@@ -12,12 +12,13 @@ import signal
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import robosuite
 
 from veragmil_suite.controllers.scoop_config import load_scoop_controller_config
-from veragmil_suite.data.recording import EpisodeRecorder
+from veragmil_suite.data.recording import Episode, EpisodeRecorder
 from veragmil_suite.data.schema import DatasetError, env_meta, provenance
 from veragmil_suite.data.writer import DemoWriter
 from veragmil_suite.devices.operators import ScriptedOperator, TeleopOperator
@@ -25,6 +26,9 @@ from veragmil_suite.environments import settling
 from veragmil_suite.environments.episode import SUCCESS_HOLD_S, run_until_done
 from veragmil_suite.utils.canonical import canonical
 from veragmil_suite.utils.distributed import ray_session, run_pieces
+
+if TYPE_CHECKING:
+    from veragmil_suite.environments.scoop import ScoopGranular
 
 KEEP_POLICIES = ("ask", "all", "success")
 
@@ -84,7 +88,7 @@ def open_writer(
     operator: str,
     seed: int | None = None,
     valid_ratio: float = 0.1,
-    **provenance_extra,
+    **provenance_extra: Any,
 ) -> tuple[DemoWriter, int]:
     """
     The DemoWriter of a collection into ``output`` (appended to when it exists) and its first attempt's seed:
@@ -134,9 +138,9 @@ class FrameCap:
 
 
 def run_episode(
-    env,
-    recorder,
-    operator,
+    env: ScoopGranular,
+    recorder: EpisodeRecorder,
+    operator: ScriptedOperator | TeleopOperator,
     success_hold_s: float,
     render: bool,
     realtime: bool,
@@ -165,15 +169,15 @@ def run_episode(
 
 
 def record_attempt(
-    env,
-    recorder,
-    operator,
+    env: ScoopGranular,
+    recorder: EpisodeRecorder,
+    operator: ScriptedOperator | TeleopOperator,
     seed: int,
     success_hold_s: float = SUCCESS_HOLD_S,
     render: bool = False,
     realtime: bool = False,
     pace: FrameCap | None = None,
-):
+) -> tuple[int, str, Episode | None]:
     """One attempt with ``seed``: (seed, why it ended, the Episode, or None when no step was taken)."""
     reason = run_episode(env, recorder, operator, success_hold_s, render, realtime, seed=seed, pace=pace)
     if not recorder.num_steps:
@@ -182,9 +186,9 @@ def record_attempt(
 
 
 def local_attempts(
-    env,
-    recorder,
-    operator,
+    env: ScoopGranular,
+    recorder: EpisodeRecorder,
+    operator: ScriptedOperator | TeleopOperator,
     first_seed: int,
     success_hold_s: float = SUCCESS_HOLD_S,
     render: bool = False,
@@ -221,7 +225,7 @@ def _worker_attempt(context: tuple, seed: int):
 
 
 def parallel_attempts(
-    env,
+    env: ScoopGranular,
     env_kwargs: dict,
     profile: str,
     first_seed: int,
@@ -322,7 +326,7 @@ def collect(
     episodes: int,
     keep_policy: str = "success",
     max_attempts: int | None = None,
-    operator=None,
+    operator: ScriptedOperator | TeleopOperator | None = None,
     say: Callable[[str], None] = print_now,
 ) -> CollectionOutcome:
     """

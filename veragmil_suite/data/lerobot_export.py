@@ -30,8 +30,10 @@ import json
 import os
 import shutil
 import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from tqdm import tqdm
@@ -40,6 +42,9 @@ from veragmil_suite.data.schema import METRIC_KEYS, DatasetError, demo_names, fi
 from veragmil_suite.learning import robomimic_compat
 from veragmil_suite.learning.observation_sets import GOAL_OBSERVABLES
 from veragmil_suite.utils.whole_files import put_folder_in_place, recover_folder
+
+if TYPE_CHECKING:
+    import h5py
 
 STATE_PREFIX = "robot0_"
 ENVIRONMENT_STATE_KEY = "object"
@@ -96,7 +101,7 @@ class ExportLayout:
     skipped_keys: list[str] = field(default_factory=list)
 
     @classmethod
-    def of(cls, demo) -> ExportLayout:
+    def of(cls, demo: h5py.Group) -> ExportLayout:
         obs = demo["obs"]
         state_keys = sorted(k for k in obs if k.startswith(STATE_PREFIX) and obs[k].ndim == 2 and obs[k].shape[1])
         cameras = sorted(k[: -len(IMAGE_SUFFIX)] for k in obs if k.endswith(IMAGE_SUFFIX))
@@ -110,7 +115,7 @@ class ExportLayout:
             skipped_keys=sorted(k for k in obs if k.endswith(DEPTH_SUFFIX)),
         )
 
-    def features(self, demo) -> dict:
+    def features(self, demo: h5py.Group) -> dict:
         """LeRobotDataset.create's ``features`` for this layout (``demo`` gives the shapes)."""
         obs = demo["obs"]
         names = [f"{k}_{i}" for k in self.state_keys for i in range(obs[k].shape[1])]
@@ -136,7 +141,7 @@ class ExportLayout:
             features[f"episode.{key}"] = dict(dtype=dtype, shape=(1,), names=None)
         return features
 
-    def frames(self, demo, food: str):
+    def frames(self, demo: h5py.Group, food: str) -> Iterator[dict[str, Any]]:
         """The demo's frames, as add_frame takes them."""
         obs = demo["obs"]
         state = np.concatenate([obs[k][()] for k in self.state_keys], axis=1).astype(np.float32)

@@ -67,7 +67,7 @@ class EpisodeRecorder:
         self._converted = robomimic_obs.observation(self.env, raw)
         return raw
 
-    def step(self, action: np.ndarray, label: np.ndarray | None = None):
+    def step(self, action: np.ndarray, label: np.ndarray | None = None) -> tuple[dict, float, bool, dict]:
         """
         env.step(action), recorded. Returns (obs, reward, done, info), obs that of the state reached.
 

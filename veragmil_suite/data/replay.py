@@ -7,6 +7,7 @@ from __future__ import annotations
 import contextlib
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import h5py
 import numpy as np
@@ -28,6 +29,9 @@ from veragmil_suite.utils.canonical import canonical
 from veragmil_suite.utils.numbers import is_number, is_whole
 from veragmil_suite.utils.whole_files import same_file, written_whole
 
+if TYPE_CHECKING:
+    from robosuite.environments.base import MujocoEnv
+
 
 class DemoEnvs:
     """Environments for a file's demos, built from each demo's own env_args (a merged file may mix foods)."""
@@ -38,7 +42,7 @@ class DemoEnvs:
         self._key = None
         self.env = None
 
-    def for_demo(self, g: h5py.Group):
+    def for_demo(self, g: h5py.Group) -> MujocoEnv:
         """The env for this demo's env_args and the overrides: the current one unless they differ."""
         meta = json.loads(g.attrs["env_args"]) if "env_args" in g.attrs else self.file_meta
         kwargs = with_recorded_physics({k: v for k, v in meta["env_kwargs"].items() if k not in ("env_name",)})

@@ -180,7 +180,7 @@ class _GuardedFile:
     def tell(self) -> int:
         return self.pos
 
-    def readinto(self, buffer) -> int:
+    def readinto(self, buffer: bytearray | memoryview) -> int:
         view = memoryview(buffer).cast("B")
         n = os.preadv(self.fd, [view], self.pos)
         view[n:] = bytes(len(view) - n)
@@ -195,7 +195,7 @@ class _GuardedFile:
         buffer = bytearray(size)
         return bytes(buffer[: self.readinto(buffer)])
 
-    def write(self, buffer) -> int:
+    def write(self, buffer: bytes | bytearray | memoryview) -> int:
         data = memoryview(buffer).cast("B")
         if self.error is None:
             try:

@@ -27,6 +27,7 @@ import re
 import subprocess
 from importlib.metadata import version
 from pathlib import Path
+from typing import Any
 
 import h5py
 import mujoco
@@ -236,7 +237,7 @@ def demo_start(attrs: h5py.AttributeManager | dict) -> str:
     return attr_text(attrs.get("start", EARLIER_START))
 
 
-def provenance(device: str, operator: str, food: str, robot: str, **extra) -> dict:
+def provenance(device: str, operator: str, food: str, robot: str, **extra: Any) -> dict:
     """Who and what made the demonstrations: device, operator, food, robot, how each demo starts, software
     versions, date."""
     out = dict(
@@ -374,7 +375,7 @@ def split_demos(names: list[str], valid_ratio: float, seed: int = 0) -> tuple[li
     return [x for i, x in enumerate(names) if i not in valid], [x for i, x in enumerate(names) if i in valid]
 
 
-def attr_text(value) -> str:
+def attr_text(value: bytes | str) -> str:
     """An HDF5 attribute as text (h5py gives bytes or str)."""
     return value.decode() if isinstance(value, bytes) else str(value)
 

@@ -17,6 +17,7 @@ import signal
 import threading
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import h5py
 import numpy as np
@@ -289,7 +290,7 @@ def action_limit(env_kwargs: dict) -> float:
     names none, robosuite's default)."""
     limits: list[float] = []
 
-    def visit(node) -> None:
+    def visit(node: Any) -> None:
         if isinstance(node, dict):
             for key, value in node.items():
                 if key in ("input_max", "input_min"):

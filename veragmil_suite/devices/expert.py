@@ -13,6 +13,7 @@ time, coarse and jerky input); its data is scripted data all the same and is lab
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 import robosuite.utils.transform_utils as T
@@ -442,6 +443,6 @@ def _clip_norm(v: np.ndarray, limit: float) -> np.ndarray:
     return v if n <= limit or n == 0 else v * (limit / n)
 
 
-def with_overrides(profile: str | OperatorProfile, **changes) -> OperatorProfile:
+def with_overrides(profile: str | OperatorProfile, **changes: Any) -> OperatorProfile:
     """A profile with some fields changed (e.g. a slower expert: ``with_overrides("expert", speed=0.5)``)."""
     return replace(get_profile(profile), **changes)

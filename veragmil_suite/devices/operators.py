@@ -5,12 +5,20 @@ keyboard, SpaceMouse, DualSense or viewer, or our VR headset) through robosuite'
 from __future__ import annotations
 
 import time
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from veragmil_suite.devices.expert import ScriptedScooper
 from veragmil_suite.devices.session import RobosuiteDevice, SessionDevice
 from veragmil_suite.utils.cli.handler import UsageError
+
+if TYPE_CHECKING:
+    import argparse
+
+    from robosuite.devices import Device
+
+    from veragmil_suite.environments.scoop import ScoopGranular
 
 
 class ScriptedOperator:
@@ -115,7 +123,7 @@ class TeleopOperator:
         return "vr server: " + (", ".join(counts) or "no page connected")
 
 
-def make_device(args, env):
+def make_device(args: argparse.Namespace, env: ScoopGranular) -> Device:
     """The teleoperation device for ``--device``, built as robosuite's collect_human_demonstrations.py builds it
     (robosuite's own classes) or our VRDevice; UsageError when its hardware cannot be opened."""
     sensitivity = dict(pos_sensitivity=args.pos_sensitivity, rot_sensitivity=args.rot_sensitivity)
@@ -148,7 +156,7 @@ def make_device(args, env):
     )
 
 
-def make_operator(args, env):
+def make_operator(args: argparse.Namespace, env: ScoopGranular) -> ScriptedOperator | TeleopOperator:
     """The operator for ``--device``: the scripted expert, or a person on a device (make_device)."""
     if args.device == "scripted":
         return ScriptedOperator(env, args.profile, args.seed)

@@ -4,6 +4,8 @@ one interface, with a robosuite device's answers as defaults, so the collection 
 
 from __future__ import annotations
 
+from typing import Any
+
 
 class SessionDevice:
     """The session hooks of a teleoperation device. The defaults are those of a device with no clutch, no status
@@ -50,5 +52,5 @@ class RobosuiteDevice(SessionDevice):
     def start_control(self) -> None:
         self.device.start_control()
 
-    def input2action(self, **kwargs):
+    def input2action(self, **kwargs: Any) -> dict | None:
         return self.device.input2action(**kwargs)

@@ -416,7 +416,7 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
         self.sim.forward()
         self.settled_max_speed = pile.max_speed_m_s
 
-    def step(self, action):
+    def step(self, action: np.ndarray) -> tuple[dict, float, bool, dict]:
         """
         robosuite's step, except that an action with NaN or inf is not executed: it ends the episode with
         info["physics_error"] naming it, as a physics blow-up does (OSC turned it into a limp, falling arm).
@@ -469,7 +469,7 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
         mujoco.mj_camlight(model, data)
         mujoco.mj_comVel(model, data)
 
-    def initialize_time(self, control_freq):
+    def initialize_time(self, control_freq: float) -> None:
         """
         Initializes the time constants used for simulation: the task's own physics step (physics_timestep_s, see
         ScoopTask), which must divide the control period; a model loaded from XML brings its own (_initialize_sim).
@@ -496,7 +496,7 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
             xml = processor(xml)
         return xml
 
-    def reset(self, seed: int | None = None):
+    def reset(self, seed: int | None = None) -> dict:
         """
         robosuite's reset; with ``seed`` the env's generator is seeded first, so the episode (pile variant, bowl
         place and turn, initialization noise) depends on that seed alone, whatever episodes came before.

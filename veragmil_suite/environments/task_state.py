@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import mujoco
 import numpy as np
 import robosuite.utils.transform_utils as T
@@ -11,6 +13,9 @@ from veragmil_suite.environments.stages import SCOOP_STAGES
 from veragmil_suite.environments.start_pose import POST_SCOOP_EEF_ROT, rotation_to_post_scoop
 from veragmil_suite.models.humanoid import SPOON_ARM
 from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
+
+if TYPE_CHECKING:
+    from robosuite.utils.binding_utils import MjData
 
 # what the success rule's spill limit is a fraction of: the volume lifted out of the bowl, or all the food in the
 # bowl (the paper's "less than 5% of the total volume spilled" read literally)
@@ -35,7 +40,7 @@ _INSTABILITY_WARNINGS = (
 )
 
 
-def instability_warnings(data) -> int:
+def instability_warnings(data: MjData) -> int:
     """How many times MuJoCo found non-finite or huge state and reset itself (it does so silently)."""
     return sum(data.warning[w].number for w in _INSTABILITY_WARNINGS)
 
@@ -44,7 +49,7 @@ class TaskStateMixin:
     """What ScoopGranular measures in a state: the grains in the bowl, in the spoon and spilled, the scoop's stage, its
     reward and success, and the task's observables."""
 
-    def reward(self, action=None):
+    def reward(self, action: np.ndarray | None = None) -> float:
         """
         Reward function for the task.
 
@@ -270,20 +275,20 @@ class TaskStateMixin:
             modality = "object"
 
             @sensor(modality=modality)
-            def desired_pose(obs_cache):
+            def desired_pose(obs_cache: dict | None) -> np.ndarray:
                 pos = self._desired_pos()
                 return np.concatenate([pos, T.mat2quat(POST_SCOOP_EEF_ROT)])
 
             @sensor(modality=modality)
-            def bowl_pos(obs_cache):
+            def bowl_pos(obs_cache: dict | None) -> np.ndarray:
                 return self._rim_center()
 
             @sensor(modality=modality)
-            def spoon_to_desired_pos(obs_cache):
+            def spoon_to_desired_pos(obs_cache: dict | None) -> np.ndarray:
                 return self._desired_pos() - self.sim.data.site_xpos[self.eef_site_id]
 
             @sensor(modality=modality)
-            def spoon_load(obs_cache):
+            def spoon_load(obs_cache: dict | None) -> np.ndarray:
                 # grains in the spoon, grains spilled (a vector: robosuite squeezes one-element observations)
                 m = self._scoop_metrics()
                 return np.array([m["grains_in_spoon"], m["grains_spilled"]], dtype=float)
@@ -293,7 +298,7 @@ class TaskStateMixin:
             if self.use_food_params_obs:
 
                 @sensor(modality=modality)
-                def food_params(obs_cache):
+                def food_params(obs_cache: dict | None) -> np.ndarray:
                     g = self.grain
                     return np.array([g.mean_size_m, g.friction, g.restitution, g.density_kg_m3 / 1000.0])
 
@@ -305,13 +310,13 @@ class TaskStateMixin:
             # the orientation twin of spoon_to_desired_pos, in a modality of its own so that ``object`` (which
             # datasets and checkpoints of the "object" set hold) keeps its layout
             @sensor(modality="goal")
-            def spoon_to_desired_rot(obs_cache):
+            def spoon_to_desired_rot(obs_cache: dict | None) -> np.ndarray:
                 return rotation_to_post_scoop(self.sim.data.site_xmat[self.eef_site_id])
 
             # the food's piece size, which a camera over the bowl sees (its identity and physics stay unobserved):
             # where a scoop can reach before large pieces go over the rim depends on it
             @sensor(modality="goal")
-            def piece_size(obs_cache):
+            def piece_size(obs_cache: dict | None) -> np.ndarray:
                 return self.piece_size_m.copy()
 
             for s in (spoon_to_desired_rot, piece_size):
@@ -331,11 +336,11 @@ class TaskStateMixin:
         modality = f"{pf}wrench"
 
         @sensor(modality=modality)
-        def eef_force(obs_cache):
+        def eef_force(obs_cache: dict | None) -> np.ndarray:
             return np.array(robot.ee_force[SPOON_ARM])
 
         @sensor(modality=modality)
-        def eef_torque(obs_cache):
+        def eef_torque(obs_cache: dict | None) -> np.ndarray:
             return np.array(robot.ee_torque[SPOON_ARM])
 
         return {

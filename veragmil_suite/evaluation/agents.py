@@ -21,6 +21,7 @@ import math
 import os
 import time
 import traceback
+from collections.abc import Callable
 from dataclasses import MISSING as MISSING_FIELD
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
@@ -293,7 +294,9 @@ def _checkpoint_env(task: EpisodeTask):
     return env.env, obs, lambda o: policy(ob=o), env.step
 
 
-def episode_env(task: EpisodeTask):
+def episode_env(
+    task: EpisodeTask,
+) -> tuple[ScoopGranular, dict, Callable[[dict], np.ndarray | None], Callable[[np.ndarray], tuple]]:
     """A task's environment reset for its episode, its first observation, the agent's act(obs) and the env's step:
     the scripted operator's or the checkpoint's (what run_episode runs; probes step it themselves)."""
     return (_expert_env if task.spec.kind == "expert" else _checkpoint_env)(task)

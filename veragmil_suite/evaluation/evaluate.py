@@ -191,7 +191,7 @@ def _recorded_settings(
     if not settings:
         return horizon, env_kwargs
 
-    def shared(key: str):
+    def shared(key: str) -> int | dict | str | None:
         values = {n: s[key] for n, s in settings.items()}
         return next(iter(values.values())) if len(set(values.values())) == 1 else values
 

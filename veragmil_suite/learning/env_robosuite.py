@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import copy
 import os
+from typing import TYPE_CHECKING
 
 import numpy as np
 import robosuite
@@ -49,8 +50,11 @@ install_mujoco_py_stand_in()  # robomimic's env_robosuite imports mujoco_py
 import robomimic.utils.obs_utils as ObsUtils  # noqa: E402
 from robomimic.envs.env_robosuite import EnvRobosuite  # noqa: E402
 
+if TYPE_CHECKING:
+    from robosuite.environments.base import MujocoEnv
 
-def make_robosuite_env(env_name: str, kwargs: dict):
+
+def make_robosuite_env(env_name: str, kwargs: dict) -> MujocoEnv:
     """robosuite.make, with every joint-position observable active (robomimic's datasets use them)."""
     env = robosuite.make(env_name, **kwargs)
     for name in env.observation_names:
@@ -123,7 +127,7 @@ class EnvRobosuite15(EnvRobosuite):
         self._variant_envs = {canonical(self._init_kwargs): self.env}
         self._holding_variant = False
 
-    def reset(self):
+    def reset(self) -> dict:
         """Resets the environment, first moving to the next env_kwargs variant when taking them in turn."""
         if self.env_kwargs_variants and self._variants_in_turn and not self._holding_variant:
             self._variant_index = (self._variant_index + 1) % len(self.env_kwargs_variants)
@@ -139,7 +143,7 @@ class EnvRobosuite15(EnvRobosuite):
             self.env = self._variant_envs[key]
         return super().reset()
 
-    def reset_to(self, state):
+    def reset_to(self, state: dict) -> dict | None:
         """Resets to a saved state; its own reset stays with the current variant (the state is its episode's)."""
         holding = self._holding_variant
         self._holding_variant = True
@@ -148,20 +152,20 @@ class EnvRobosuite15(EnvRobosuite):
         finally:
             self._holding_variant = holding
 
-    def step(self, action):
+    def step(self, action: np.ndarray) -> tuple[dict, float, bool, dict]:
         """Steps the environment; done is the environment's own termination (the horizon is the caller's)."""
         raw, reward, done, info = self.env.step(action)
         return self.get_observation(raw), reward, bool(done) or self.is_done(), info
 
-    def get_observation(self, di=None):
+    def get_observation(self, di: dict | None = None) -> dict[str, np.ndarray]:
         """Observation dictionary (see veragmil_suite.learning.robomimic_obs.observation)."""
         return robomimic_obs.observation(self.env, di, postprocess=self.postprocess_visual_obs)
 
-    def get_state(self):
+    def get_state(self) -> dict:
         """The simulation's own XML and flattened state, as reset_to expects them."""
         return dict(model=robomimic_obs.model_xml(self.env), states=np.array(self.env.sim.get_state().flatten()))
 
-    def serialize(self):
+    def serialize(self) -> dict:
         """robomimic's env metadata, with the env_kwargs variants."""
         meta = super().serialize()
         if self.env_kwargs_variants:

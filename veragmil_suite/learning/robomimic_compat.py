@@ -67,6 +67,7 @@ import functools
 import os
 import re
 import sys
+from typing import TYPE_CHECKING, Any
 
 import h5py
 
@@ -75,6 +76,9 @@ from veragmil_suite.learning import robomimic_obs
 from veragmil_suite.learning.mujoco_py_stand_in import install_mujoco_py_stand_in
 from veragmil_suite.learning.robomimic_scripts import experiment_dirs, normalize_obs, postprocess_without_normalizing
 from veragmil_suite.models.foods import with_recorded_physics
+
+if TYPE_CHECKING:
+    from robomimic.envs.env_base import EnvBase
 
 # Schemas of the torchvision ops whose fake kernels torchvision registers even when its compiled library did not
 # load (the same signatures as torchvision's C++ registrations).
@@ -149,7 +153,7 @@ def _create_env_from_metadata(create):
         return create
 
     @functools.wraps(create)
-    def create_env_from_metadata(env_meta, *args, **kwargs):
+    def create_env_from_metadata(env_meta: dict, *args: Any, **kwargs: Any) -> EnvBase:
         env_kwargs = {k: v for k, v in env_meta.get("env_kwargs", {}).items() if k != "env_name"}
         from veragmil_suite.data.schema import ENV_NAME  # schema imports robosuite, which this module patches first
 
@@ -169,7 +173,7 @@ def _with_dataset_variants(get_env_metadata):
         return get_env_metadata
 
     @functools.wraps(get_env_metadata)
-    def get_env_metadata_from_dataset(dataset_path, *args, **kwargs):
+    def get_env_metadata_from_dataset(dataset_path: str, *args: Any, **kwargs: Any) -> dict:
         env_meta = get_env_metadata(dataset_path, *args, **kwargs)
         with h5py.File(os.path.expanduser(dataset_path), "r") as f:
             if any("env_args" in f["data"][name].attrs for name in demo_names(f)):
@@ -192,7 +196,7 @@ def _with_variants(create, in_turn: bool = True):
         return create
 
     @functools.wraps(create)
-    def create_with_variants(env_meta, *args, **kwargs):
+    def create_with_variants(env_meta: dict, *args: Any, **kwargs: Any) -> EnvBase:
         from veragmil_suite.learning.env_robosuite import EnvRobosuite15  # imports robomimic (torch)
 
         env = create(env_meta, *args, **kwargs)

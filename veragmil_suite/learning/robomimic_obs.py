@@ -10,6 +10,7 @@ dataset_states_to_obs extracts.
 from __future__ import annotations
 
 import functools
+from typing import TYPE_CHECKING
 
 import numpy as np
 import robosuite.macros
@@ -18,13 +19,16 @@ from robosuite.utils.binding_utils import MjSim
 from veragmil_suite.learning.observation_sets import WRENCH_OBSERVATIONS
 from veragmil_suite.utils.sim_xml import source_xml
 
+if TYPE_CHECKING:
+    from robosuite.environments.base import MujocoEnv
+
 # observations of the torques applied in the step, not of the state alone (accelerations, the wrist's force-torque
 # sensor): robomimic's dataset_states_to_obs, which sets each recorded state and reads it, cannot give them back
 # (veragmil-robomimic-states-to-obs keeps the recorded values)
 TORQUE_DEPENDENT_OBSERVATIONS = ("robot0_joint_acc", *WRENCH_OBSERVATIONS)
 
 
-def observation(env, raw: dict | None = None, postprocess: bool = False) -> dict[str, np.ndarray]:
+def observation(env: MujocoEnv, raw: dict | None = None, postprocess: bool = False) -> dict[str, np.ndarray]:
     """
     robomimic's observation dictionary from a robosuite environment's observations (``raw``, default: the env's
     current ones).
@@ -66,7 +70,7 @@ def observation(env, raw: dict | None = None, postprocess: bool = False) -> dict
     return obs
 
 
-def observe(env) -> dict:
+def observe(env: MujocoEnv) -> dict:
     """robosuite's observation of the simulation's current state, after a state was set by hand.
 
     The same observation ``env.step()`` returns for the state it reached (ScoopGranular observes at the end of
@@ -84,7 +88,7 @@ def remember_sim_xml() -> None:
     compile_xml = MjSim.from_xml_string.__func__
 
     @functools.wraps(compile_xml)
-    def from_xml_string(cls, xml):
+    def from_xml_string(cls: type[MjSim], xml: str) -> MjSim:
         sim = compile_xml(cls, xml)
         sim.source_xml = xml
         return sim
@@ -93,7 +97,7 @@ def remember_sim_xml() -> None:
     MjSim.from_xml_string = classmethod(from_xml_string)
 
 
-def model_xml(env) -> str:
+def model_xml(env: MujocoEnv) -> str:
     """
     The MJCF the env's simulation was compiled from (its XML processors, edit_model_xml among them, applied), as
     reset_to takes it and robomimic's get_state stores it.
@@ -108,7 +112,7 @@ def model_xml(env) -> str:
     return xml if xml is not None else env.edit_model_xml(env.model.get_xml())
 
 
-def reset_to(env, model_xml: str, state: np.ndarray) -> None:
+def reset_to(env: MujocoEnv, model_xml: str, state: np.ndarray) -> None:
     """robomimic's ``reset_to({"model": xml, "states": state})`` for a robosuite env: reload the XML, set the state
     (whose pose the first step holds: ScoopGranular.hold_restored_pose)."""
     env.reset_from_xml_string(env.edit_model_xml(model_xml))
@@ -117,7 +121,7 @@ def reset_to(env, model_xml: str, state: np.ndarray) -> None:
     env.sim.forward()
 
 
-def reset_to_demo(env, model_xml: str, state: np.ndarray) -> dict:
+def reset_to_demo(env: MujocoEnv, model_xml: str, state: np.ndarray) -> dict:
     """reset_to for a recorded demo; returns robosuite's observation there.
 
     ScoopGranular finds which pile variant the demo's XML holds, so the metrics and object observations of a
@@ -127,7 +131,7 @@ def reset_to_demo(env, model_xml: str, state: np.ndarray) -> dict:
     return observe(env)
 
 
-def restart_from_current_state(env) -> tuple[dict, str]:
+def restart_from_current_state(env: MujocoEnv) -> tuple[dict, str]:
     """Restart the env, right after ``env.reset()``, from its own model and state the way playback will.
 
     Stepping right after ``env.reset()`` and stepping after a playback's reset_to differ (the reload rebuilds the

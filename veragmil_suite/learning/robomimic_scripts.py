@@ -12,8 +12,9 @@ import json
 import os
 import time
 import types
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, NoReturn
 
 import h5py
 import numpy as np
@@ -24,6 +25,14 @@ from veragmil_suite.data.writer import write_lock
 from veragmil_suite.learning import training_resume
 from veragmil_suite.learning.robomimic_obs import TORQUE_DEPENDENT_OBSERVATIONS
 from veragmil_suite.utils.canonical import canonical
+
+if TYPE_CHECKING:
+    import argparse
+
+    import torch
+    from robomimic.algo.algo import Algo
+    from robomimic.config.config import Config
+    from torch.utils.data import DataLoader, Dataset
 
 
 def prepare_states_to_obs_script(module: types.ModuleType) -> None:
@@ -37,7 +46,7 @@ def prepare_states_to_obs_script(module: types.ModuleType) -> None:
     robomimic_states_to_obs = getattr(module.dataset_states_to_obs, "__wrapped__", module.dataset_states_to_obs)
 
     @functools.wraps(robomimic_states_to_obs)
-    def dataset_states_to_obs(args):
+    def dataset_states_to_obs(args: argparse.Namespace) -> None:
         folder = os.path.dirname(args.dataset)
         output = os.path.join(folder, args.output_name)
         with write_lock(output):
@@ -143,7 +152,7 @@ def _new_run_folder(config) -> str:
 
 
 def experiment_dirs(
-    config, auto_remove_exp_dir: bool = False, run_dir: str | os.PathLike | None = None
+    config: Config, auto_remove_exp_dir: bool = False, run_dir: str | os.PathLike | None = None
 ) -> tuple[str, str | None, str]:
     """
     Replaces robomimic's get_exp_dir: <output_dir>/<experiment name>/<timestamp>/{logs, models, videos}.
@@ -200,7 +209,7 @@ def prepare_train_script(module: types.ModuleType, resume: bool = False) -> Trai
     threads = os.environ.get("VERAGMIL_TORCH_THREADS")
 
     @functools.wraps(robomimic_train)
-    def train(config, device):
+    def train(config: Config, device: torch.device) -> None:
         outcome.config = config
         set_num_threads = torch.set_num_threads
         if threads:
@@ -234,7 +243,7 @@ def prepare_train_script(module: types.ModuleType, resume: bool = False) -> Trai
             )
         return training_resume.ResumingTrainUtils(train_utils, run_dir, training_resume.load(run_dir), every_s)
 
-    def data_loader(dataset, batch_size=1, drop_last=False, **kwargs):
+    def data_loader(dataset: Dataset, batch_size: int = 1, drop_last: bool = False, **kwargs: Any) -> DataLoader:
         from torch.utils.data import DataLoader  # heavy: torch, only when used
 
         config = outcome.config
@@ -269,11 +278,11 @@ def normalize_obs(obs_dict: dict, obs_normalization_stats: dict) -> dict:
     return out
 
 
-def postprocess_without_normalizing(postprocess):
+def postprocess_without_normalizing(postprocess: Callable[..., dict]) -> Callable[..., dict]:
     """Algo.postprocess_batch_for_training, less its second normalization: the dataset normalized each sample."""
 
     @functools.wraps(postprocess)
-    def postprocess_batch_for_training(self, batch, obs_normalization_stats):
+    def postprocess_batch_for_training(self: Algo, batch: dict, obs_normalization_stats: dict | None) -> dict:
         return postprocess(self, batch, obs_normalization_stats=None)
 
     return postprocess_batch_for_training
@@ -283,7 +292,7 @@ def postprocess_without_normalizing(postprocess):
 def no_prompts() -> Iterator[None]:
     """Turns any input() robomimic might call into an error: console commands must never wait on a prompt."""
 
-    def refuse(prompt=""):
+    def refuse(prompt: object = "") -> NoReturn:
         raise RuntimeError(f"robomimic asked interactively ({str(prompt).strip()!r}); veragmil commands never prompt")
 
     saved = builtins.input

@@ -16,10 +16,16 @@ import os
 import random
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from veragmil_suite.utils.whole_files import write_whole
+
+if TYPE_CHECKING:
+    from robomimic.algo.algo import Algo
+    from robomimic.config.config import Config
+    from torch.utils.data import DataLoader
 
 RESUME_FILE = "resume.pth"
 SECONDS_FILE = "training_seconds.json"  # a finished run's training time, over all its pieces
@@ -59,7 +65,7 @@ def _load_state_dicts(items, states) -> None:
         items.load_state_dict(states)
 
 
-def capture(model, epoch: int, seconds: float = 0.0) -> dict:
+def capture(model: Algo, epoch: int, seconds: float = 0.0) -> dict:
     """What training needs to go on after ``epoch`` finished epochs of ``model`` (a robomimic Algo), which took
     ``seconds``."""
     import torch  # heavy: torch, only when used
@@ -78,7 +84,7 @@ def capture(model, epoch: int, seconds: float = 0.0) -> dict:
     }
 
 
-def restore(model, state: dict) -> None:
+def restore(model: Algo, state: dict) -> None:
     """Puts ``model`` and the random generators where ``state`` (from capture) left them."""
     import torch  # heavy: torch, only when used
 
@@ -130,7 +136,7 @@ def held_config(run_dir: str | Path) -> dict | None:
 PATH_KEYS = ("data", "output_dir")  # the train section's paths: a folder named relative or absolute is one folder
 
 
-def comparable_config(config) -> dict:
+def comparable_config(config: dict) -> dict:
     """A robomimic config as plain JSON with the train section's paths absolute: two runs of one experiment compare
     equal whichever way their folders were named."""
     out = json.loads(json.dumps(config))
@@ -166,13 +172,15 @@ class ResumingTrainUtils:
     def __getattr__(self, name):
         return getattr(self._train_utils, name)
 
-    def get_exp_dir(self, config, auto_remove_exp_dir: bool = False):
+    def get_exp_dir(self, config: Config, auto_remove_exp_dir: bool = False) -> tuple[str, str | None, str]:
         """The run's folders (robomimic_scripts.experiment_dirs): ``run_dir``'s when resuming, else a new run's."""
         dirs = self._train_utils.get_exp_dir(config, auto_remove_exp_dir, run_dir=self.run_dir)
         self.run_dir = Path(dirs[0]).parent
         return dirs
 
-    def run_epoch(self, model, data_loader, epoch, validate=False, **kwargs):
+    def run_epoch(
+        self, model: Algo, data_loader: DataLoader, epoch: int, validate: bool = False, **kwargs: Any
+    ) -> dict:
         if not validate:
             self._epoch = epoch
             if epoch == 1 and self.done:
@@ -194,7 +202,7 @@ class ResumingTrainUtils:
         """The finished epochs' ends (learning-rate steps) are in the state restored after them."""
         on_epoch_end = model.on_epoch_end
 
-        def after_restore(epoch):
+        def after_restore(epoch: int) -> None:
             if epoch > self.done:
                 on_epoch_end(epoch)
 
@@ -205,12 +213,20 @@ class ResumingTrainUtils:
         """Whether the loop is in an epoch the resumed state has finished."""
         return 0 < self._epoch <= self.done
 
-    def rollout_with_stats(self, *args, **kwargs):
+    def rollout_with_stats(self, *args: Any, **kwargs: Any) -> tuple[dict, dict | None]:
         if self.skipping:
             return {}, None
         return self._train_utils.rollout_with_stats(*args, **kwargs)
 
-    def save_model(self, model, config, env_meta, shape_meta, ckpt_path, obs_normalization_stats=None):
+    def save_model(
+        self,
+        model: Algo,
+        config: Config,
+        env_meta: dict,
+        shape_meta: dict,
+        ckpt_path: str,
+        obs_normalization_stats: dict | None = None,
+    ) -> None:
         if self.skipping:
             return
         write_whole(

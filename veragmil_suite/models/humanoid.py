@@ -20,10 +20,14 @@ from __future__ import annotations
 
 import importlib.util
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from robosuite.models.robots.robot_model import REGISTERED_ROBOTS
 from robosuite.robots import ROBOT_CLASS_MAPPING
+
+if TYPE_CHECKING:
+    import xml.etree.ElementTree as ET
 
 # robosuite-models 1.0.0's G1 variants the task supports: a fixed base (the legs do not balance anything)
 G1_ROBOTS = ("G1FixedLowerBody", "G1ArmsOnly")
@@ -109,7 +113,7 @@ def check_robot(robot: str) -> None:
         )
 
 
-def self_contact_excludes(worldbody) -> list[tuple[str, str]]:
+def self_contact_excludes(worldbody: ET.Element) -> list[tuple[str, str]]:
     """
     Body pairs of the robot that must not touch: each body with every body with geoms up to SHOULDER_JOINTS joints
     above it.
@@ -126,10 +130,10 @@ def self_contact_excludes(worldbody) -> list[tuple[str, str]]:
     """
     pairs = []
 
-    def has(body, tag: str) -> bool:
+    def has(body: ET.Element, tag: str) -> bool:
         return any(child.tag == tag for child in body)
 
-    def walk(body, above: list) -> None:
+    def walk(body: ET.Element, above: list) -> None:
         # above: (ancestor, joints between it and ``body``'s parent) for each ancestor, nearest last
         joints = int(has(body, "joint") or has(body, "freejoint"))
         pairs.extend(

@@ -54,7 +54,7 @@ def pile_solver_options(grain: GrainModel, physics: str) -> dict[str, str]:
 GRAIN_SLEEP_TOLERANCE = 3e-3
 
 
-def check_sleep_tolerance(value) -> float | None:
+def check_sleep_tolerance(value: object) -> float | None:
     """
     A sleep_tolerance as ScoopTask takes it: None (nothing sleeps) or a positive number.
 
@@ -77,7 +77,7 @@ def check_sleep_tolerance(value) -> float | None:
 SAVED_STEP_RELATIVE_PRECISION = 1e-5
 
 
-def check_physics_timestep(timestep_s, control_freq: float) -> float:
+def check_physics_timestep(timestep_s: object, control_freq: float) -> float:
     """
     A physics step the task runs: positive, at most half the grains' contact time constant (MuJoCo's stability
     rule for soft contacts; a longer step stiffens them), and a whole number of steps per control period. A step

@@ -88,11 +88,11 @@ class SpoonGripper(GripperModel):
         handle.set("friction", array_to_string((SPOON_SURFACE.friction, 0.005, 0.0001)))
         handle.set("density", str(SPOON_SURFACE.density_kg_m3))
 
-    def format_action(self, action):
+    def format_action(self, action: np.ndarray) -> np.ndarray:
         return action
 
     @property
-    def init_qpos(self):
+    def init_qpos(self) -> None:
         return None
 
     @property

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
@@ -35,6 +36,11 @@ from veragmil_suite.models.foods import DEFAULT_PHYSICS, FOODS, TRAINING_FOODS
 from veragmil_suite.models.scoop_task import GRAIN_SLEEP_TOLERANCE
 from veragmil_suite.utils import cli
 from veragmil_suite.utils.timing import per_call, stopwatch
+
+if TYPE_CHECKING:
+    from robosuite.environments.base import MujocoEnv
+
+    from veragmil_suite.environments.scoop import ScoopGranular
 
 REAL_TIME_STEPS_PER_S = 20.0  # the default 20 Hz control rate
 # the speed issue's goals: at rest, asleep, 0.6x Lift; whole expert episodes of the slowest training food 1.5x (aim
@@ -51,7 +57,7 @@ STEP_PARTS = {
 }
 
 
-def env_rate(env, steps: int, warmup: int = 1) -> float:
+def env_rate(env: MujocoEnv, steps: int, warmup: int = 1) -> float:
     """Env steps/s holding still, timed after ``warmup`` steps (the first pays one-off costs)."""
     env.reset()
     action = np.zeros(env.action_dim)
@@ -76,8 +82,12 @@ def _bare_rate(env, steps: int) -> float:
 
 
 def make_env(
-    food: str, n_grains: int | None = None, robot: str = "XArm7", sleep_tolerance: float | None = None, **overrides
-):
+    food: str,
+    n_grains: int | None = None,
+    robot: str = "XArm7",
+    sleep_tolerance: float | None = None,
+    **overrides: Any,
+) -> ScoopGranular:
     """A headless ScoopGranular of one pile variant, seed 0; ``overrides`` replace or add any of its arguments."""
     kwargs = dict(
         robots=robot,
@@ -103,7 +113,7 @@ def expert_episodes(food: str, robot: str, sleep_tolerance: float | None, episod
     steps, seconds, successes, pile_awake_steps, pile_awake_s = 0, 0.0, 0, 0, 0.0
     parts = dict.fromkeys([*STEP_PARTS, "step"], 0.0)
 
-    def step(action):
+    def step(action: np.ndarray) -> tuple:
         nonlocal pile_awake_steps, pile_awake_s
         with stopwatch() as elapsed:
             out = env.step(action)

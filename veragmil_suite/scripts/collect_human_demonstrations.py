@@ -257,7 +257,7 @@ def output_path(args: argparse.Namespace) -> str:
     return os.path.join(args.directory, f"{seconds}_{fraction}", "demo.hdf5")
 
 
-def env_kwargs_from_args(args) -> dict:
+def env_kwargs_from_args(args: argparse.Namespace) -> dict:
     """robosuite.make keyword arguments (besides the env name) for the command line, JSON-serializable."""
     return recording_env_kwargs(
         args.robots,

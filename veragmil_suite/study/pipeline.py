@@ -32,7 +32,9 @@ import contextlib
 import json
 import shutil
 import time
+from collections.abc import Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from veragmil_suite.evaluation.evaluate import evaluate
 from veragmil_suite.evaluation.reporting import write_learning_curves, write_seed_tables
@@ -48,6 +50,9 @@ from veragmil_suite.study.training import (
 )
 from veragmil_suite.utils.distributed import Resources, cluster_resources, ray_session, run_pieces
 from veragmil_suite.utils.whole_files import write_text_whole
+
+if TYPE_CHECKING:
+    from veragmil_suite.evaluation.reporting import EvaluationResult
 
 # what eval/ holds beside the evaluation's own tables: learning curves, and the tables over training seeds
 CURVE_FILES = ("curves.csv", "curves.png")
@@ -96,7 +101,7 @@ def check_output_dir(settings: PipelineSettings, runs: list[dict]) -> None:
         finished_training(run["config"], out / "runs")
 
 
-def run_pipeline(settings: PipelineSettings, progress: bool = True, verbose: bool = False):
+def run_pipeline(settings: PipelineSettings, progress: bool = True, verbose: bool = False) -> EvaluationResult:
     """Records one dataset per profile, trains every algorithm on each, evaluates them and the scripted operators,
     skipping every piece a previous run in the same output directory completed; with ``settings.ray``, on Ray.
     ``progress``: a line per stage and progress bars; ``verbose``: also what the recorders and trainings print.
@@ -238,7 +243,7 @@ def _train_runs(
                 say(f"training {name} again: {config['train']['data']} changed since it was trained")
             todo.append(run)
 
-    def announced(todo: list[dict]):
+    def announced(todo: list[dict]) -> Iterator[dict]:
         for run in todo:
             steps = f"{run['config']['train']['num_epochs']} x {settings.steps_per_epoch}"
             dataset = Path(run["config"]["train"]["data"]).name

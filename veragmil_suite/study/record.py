@@ -8,6 +8,7 @@ from __future__ import annotations
 import functools
 import json
 import os
+from collections.abc import Callable
 from pathlib import Path
 
 import h5py
@@ -315,7 +316,7 @@ def record_scripted_dataset(
     path: Path,
     settings: PipelineSettings,
     profile: str = "expert",
-    say=print,
+    say: Callable[[str], None] = print,
     ray: str | None = None,
     progress: bool = False,
     echo: bool = False,
@@ -360,7 +361,7 @@ def _recording_of(path: Path) -> tuple[tuple, dict | None]:
         return (attrs.get("merged_inputs"), dropped["steps_before"], dropped["demos"]), dropped
 
 
-def drop_noops_once(merged: Path, path: Path, say=print) -> None:
+def drop_noops_once(merged: Path, path: Path, say: Callable[[str], None] = print) -> None:
     """Writes ``path``: ``merged`` without its no-op steps (veragmil-drop-noops), unless ``path`` is such a copy of
     ``merged`` as it is now (the same merged inputs, steps and demos, every no-op dropped)."""
     if path.exists():

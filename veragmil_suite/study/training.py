@@ -9,6 +9,7 @@ import hashlib
 import json
 import os
 import shutil
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -131,7 +132,7 @@ def finished_training(config: dict, work_dir: Path) -> dict[int, Path] | None:
 def train_checkpoint(
     config: dict,
     work_dir: Path,
-    say=print,
+    say: Callable[[str], None] = print,
     torch_threads: int | None = None,
     progress: bool = False,
     echo: bool = False,

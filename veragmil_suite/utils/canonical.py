@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import json
+from typing import Any
 
 
-def canonical(value) -> str:
+def canonical(value: Any) -> str:
     return json.dumps(value, sort_keys=True, default=str)

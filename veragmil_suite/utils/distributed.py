@@ -18,12 +18,17 @@ import importlib.util
 import multiprocessing
 import os
 from collections.abc import Callable, Iterable, Iterator
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from veragmil_suite.utils import cli
+
+if TYPE_CHECKING:
+    import argparse
+
+    from ray import ObjectRef
 
 Piece = TypeVar("Piece")
 Result = TypeVar("Result")
@@ -62,7 +67,7 @@ def require_ray() -> None:
         raise RayMissing(f"--ray needs Ray, an optional extra: {INSTALL_HINT} in the repository")
 
 
-def add_ray_argument(parser, pieces: str) -> None:
+def add_ray_argument(parser: argparse.ArgumentParser, pieces: str) -> None:
     """The ``--ray [ADDRESS]`` option of a console program whose ``pieces`` can run as Ray tasks."""
     parser.add_argument(
         "--ray",
@@ -77,7 +82,7 @@ def add_ray_argument(parser, pieces: str) -> None:
     )
 
 
-def check_ray_argument(args) -> None:
+def check_ray_argument(args: argparse.Namespace) -> None:
     """Raises RayMissing (one line) when ``--ray`` was given and Ray is not installed."""
     if getattr(args, "ray", None) is not None:
         require_ray()
@@ -239,20 +244,20 @@ class _ProcessBackend(_Backend):
             max_workers=processes, mp_context=mp_context, initializer=_local_init, initargs=(setup, context)
         )
 
-    def submit(self, piece):
+    def submit(self, piece: Any) -> Future:
         return self.pool.submit(_local_piece, self.function, piece)
 
-    def wait_one(self, handles):
+    def wait_one(self, handles: list[Future]) -> Future:
         done, _ = wait(handles, return_when=FIRST_COMPLETED)
         return next(h for h in handles if h in done)  # the earliest submitted of those done
 
-    def result(self, handle):
+    def result(self, handle: Future) -> Any:
         try:
             return handle.result()
         except BrokenProcessPool as error:
             raise WorkerLost(f"a worker process died: {error}") from error
 
-    def stop(self, handles):
+    def stop(self, handles: list[Future]) -> None:
         for handle in handles:
             handle.cancel()
         self.pool.shutdown(wait=True, cancel_futures=True)  # at most the pieces under way
@@ -284,14 +289,14 @@ class _RayBackend(_Backend):
             num_cpus=resources.cpus, num_gpus=resources.gpus, max_retries=max_retries, retry_exceptions=False
         )
 
-    def submit(self, piece):
+    def submit(self, piece: Any) -> ObjectRef:
         return self.remote.remote(self.function, self.setup, self.context, piece)
 
-    def wait_one(self, handles):
+    def wait_one(self, handles: list[ObjectRef]) -> ObjectRef:
         ready, _ = self.ray.wait(handles, num_returns=1)
         return ready[0]
 
-    def result(self, handle):
+    def result(self, handle: ObjectRef) -> Any:
         exceptions = self.ray.exceptions
         try:
             return self.ray.get(handle)
@@ -303,7 +308,7 @@ class _RayBackend(_Backend):
         except exceptions.RayError as error:  # its worker process or node died, Ray's retries included
             raise WorkerLost(f"a Ray worker died: {error}") from error
 
-    def stop(self, handles):
+    def stop(self, handles: list[ObjectRef]) -> None:
         for handle in handles:
             with contextlib.suppress(Exception):  # a task that ended meanwhile
                 self.ray.cancel(handle)

@@ -13,11 +13,15 @@ from __future__ import annotations
 
 import weakref
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import mujoco
 
+if TYPE_CHECKING:
+    from robosuite.utils.binding_utils import MjSim
 
-def keep_sim_xml(sim, compiled_xml: Callable[[], str]) -> None:
+
+def keep_sim_xml(sim: MjSim, compiled_xml: Callable[[], str]) -> None:
     """
     Makes ``sim.model.get_xml()`` save ``sim``'s own model. ``compiled_xml`` gives the MJCF ``sim`` was compiled
     from; it is called once, when first needed (see source_xml), unless the sim already keeps it
@@ -38,7 +42,7 @@ def keep_sim_xml(sim, compiled_xml: Callable[[], str]) -> None:
     sim.model.get_xml = get_xml
 
 
-def source_xml(sim) -> str | None:
+def source_xml(sim: MjSim) -> str | None:
     """The MJCF ``sim`` was compiled from, when it is known (keep_sim_xml, robomimic_obs.remember_sim_xml)."""
     known = getattr(sim, "source_xml", None)
     if known is None and hasattr(sim, "compiled_xml"):

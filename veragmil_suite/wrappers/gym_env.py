@@ -140,7 +140,7 @@ class ScoopGranularGymEnv(GymWrapper):
         return self
 
     @property
-    def robosuite_env(self):
+    def robosuite_env(self) -> ScoopGranular:
         """The ScoopGranular env underneath: robosuite's API (sim, scoop_info, reset_to...) and the suite's tools."""
         return self.env
 

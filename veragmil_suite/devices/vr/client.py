@@ -15,19 +15,31 @@ import json
 import math
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any
 
 import aiohttp
 
 from veragmil_suite.devices.vr.protocol import unpack_frame
 from veragmil_suite.devices.vr.server_options import CLOSE_FINISHED
 
+if TYPE_CHECKING:
+    from concurrent.futures import Future
+
 HAND = (0.2, 1.1, -0.3)  # a right hand held in front of a standing operator (XR frame)
 IDENTITY = (0.0, 0.0, 0.0, 1.0)
 
 
 def controller(
-    p=HAND, q=IDENTITY, squeeze=0.0, trigger=0.0, stick=(0.0, 0.0), stick_press=False, a=False, b=False, emulated=False
+    p: Sequence[float] = HAND,
+    q: Sequence[float] = IDENTITY,
+    squeeze: float = 0.0,
+    trigger: float = 0.0,
+    stick: Sequence[float] = (0.0, 0.0),
+    stick_press: bool = False,
+    a: bool = False,
+    b: bool = False,
+    emulated: bool = False,
 ) -> dict:
     return {
         "p": list(p),
@@ -42,8 +54,8 @@ def controller(
     }
 
 
-def pose_message(seq: int, t_ms: float, right: dict | None = None, left: dict | None = None, head_q=IDENTITY,
-                 visible=True) -> str:  # fmt: skip
+def pose_message(seq: int, t_ms: float, right: dict | None = None, left: dict | None = None,
+                 head_q: Sequence[float] = IDENTITY, visible: bool = True) -> str:  # fmt: skip
     return json.dumps(
         {
             "v": 1,
@@ -151,14 +163,14 @@ class Client:
 
         self._run(_send())
 
-    def send_pose(self, t_ms: float | None = None, **kwargs) -> None:
+    def send_pose(self, t_ms: float | None = None, **kwargs: Any) -> None:
         """One pose message with the next seq, timestamped t_ms (default: now); kwargs of ``pose_message``."""
         t_ms = 1000.0 * (time.monotonic() - self.t0) if t_ms is None else t_ms
         self.send(pose_message(self.seq, t_ms, **kwargs))
         self.seq += 1
         self.last_t_ms = t_ms
 
-    def play(self, script: Callable[[float], dict | None], duration: float, rate: float = 90.0):
+    def play(self, script: Callable[[float], dict | None], duration: float, rate: float = 90.0) -> Future[int]:
         """Send ``pose_message(**script(t))`` (None: send nothing) at rate Hz; returns a Future."""
 
         async def _play():

@@ -148,7 +148,7 @@ class ConnectionGuard(asyncio.Protocol):
         if self._tcp is not None:
             self._tcp.abort()
 
-    def connection_made(self, transport) -> None:
+    def connection_made(self, transport: asyncio.Transport) -> None:
         pool = self._pool
         peer = transport.get_extra_info("peername")
         if not pool.admit(self, str(peer[0]) if peer else "?"):
@@ -204,7 +204,7 @@ class ConnectionGuard(asyncio.Protocol):
         else:
             self._inner.data_received(data)
 
-    def eof_received(self):
+    def eof_received(self) -> bool | None:
         if self.transport is None:
             self._early_eof = True
             return None
@@ -218,7 +218,7 @@ class ConnectionGuard(asyncio.Protocol):
         if self.transport is not None:
             self._inner.resume_writing()
 
-    def connection_lost(self, exc) -> None:
+    def connection_lost(self, exc: Exception | None) -> None:
         self._release()
         if self.transport is not None:
             self._inner.connection_lost(exc)

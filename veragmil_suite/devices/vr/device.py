@@ -185,7 +185,7 @@ class VRDevice(SessionDevice, DeviceStatusMixin, Device):
     def _display_controls():
         """Method to pretty print controls."""
 
-        def print_command(char, info):
+        def print_command(char: str, info: str) -> None:
             char += " " * (30 - len(char))
             print(f"{char}\t{info}")
 
@@ -223,7 +223,7 @@ class VRDevice(SessionDevice, DeviceStatusMixin, Device):
         self._clutch.reset()
         self._target: Pose | None = None
 
-    def start_control(self):
+    def start_control(self) -> None:
         """Begin an episode: hold the arm where it is until the operator squeezes again."""
         self._reset_internal_state()
         self._reset_state = 0

@@ -46,6 +46,7 @@ import json
 import math
 import struct
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -238,7 +239,7 @@ def parse_client_message(data: str | bytes) -> HelloMessage | PoseMessage | Pong
     raise _malformed(f"unknown message type {kind!r}")
 
 
-def server_message(kind: str, **fields) -> str:
+def server_message(kind: str, **fields: Any) -> str:
     """A JSON text message from the server."""
     return json.dumps({"v": SCHEMA_VERSION, "type": kind, **fields}, separators=(",", ":"))
 

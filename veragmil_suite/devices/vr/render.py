@@ -26,6 +26,7 @@ import pickle
 import struct
 import sys
 import time
+from typing import IO, Any
 
 import cv2
 import mujoco
@@ -81,14 +82,14 @@ def auto_depth_range(depth_m: np.ndarray, far_clip: float) -> tuple[float, float
     return float(max(lo - margin, 0.0)), float(hi + margin)
 
 
-def send(stream, obj) -> None:
+def send(stream: IO[bytes], obj: Any) -> None:
     data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
     stream.write(_LEN.pack(len(data)))
     stream.write(data)
     stream.flush()
 
 
-def receive(stream):
+def receive(stream: IO[bytes]) -> Any:
     """The next message, or None at end of stream."""
     head = stream.read(_LEN.size)
     if len(head) < _LEN.size:
@@ -125,7 +126,7 @@ class Renderer:
         arrays = ("mesh_vert", "mesh_face", "tex_data", "hfield_data", "mat_texid")
         return all(np.array_equal(getattr(a, name), getattr(m, name)) for name in arrays)
 
-    def load(self, m) -> None:
+    def load(self, m: mujoco.MjModel) -> None:
         from mujoco.gl_context import GLContext  # loads the GL backend MUJOCO_GL names: only when rendering
 
         if self._gl is None or not self._same_assets(m):
@@ -179,7 +180,7 @@ class Renderer:
         return self.rgb[::-1], self.near / (1.0 - z * (1.0 - self.near / self.far))
 
 
-def serve(config: dict, requests, replies) -> None:
+def serve(config: dict, requests: IO[bytes], replies: IO[bytes]) -> None:
     """Answer the parent's requests until it says stop or goes away."""
     renderer = Renderer(config["camera"], config["width"], config["height"])
     side_by_side = np.empty((config["height"], 2 * config["width"], 3), np.uint8)  # RGB | depth, one JPEG

@@ -33,6 +33,7 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from aiohttp import WSCloseCode, WSMsgType, web
 from aiohttp.http_exceptions import HttpProcessingError
@@ -76,7 +77,7 @@ class _RequestLog(logging.LoggerAdapter):
         super().__init__(logging.getLogger("aiohttp.server"), {})
         self._note = note
 
-    def log(self, level, msg, *args, exc_info=None, **kwargs) -> None:
+    def log(self, level: int, msg: object, *args: object, exc_info: Any = None, **kwargs: Any) -> None:
         if isinstance(exc_info, HttpProcessingError):
             self._note("malformed_http")
         else:

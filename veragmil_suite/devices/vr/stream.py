@@ -36,6 +36,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -87,7 +88,7 @@ class VRStreamOptions:
     sync_to_steps: bool = True
 
 
-def step_progress(env) -> tuple[int, bool] | None:
+def step_progress(env: Any) -> tuple[int, bool] | None:
     """(control steps begun, whether the last one has finished) of a robosuite environment, from its step clock:
     ``step()`` counts ``timestep`` up before its physics and ``cur_time`` up after it. None for an environment
     without that clock."""

@@ -36,7 +36,7 @@ def _average_rows(result) -> dict[str, dict]:
     return {names[r["group"]]: r for r in rows if r["food"].endswith(" average")}
 
 
-def learning_curves(result, points: list[dict]) -> list[dict]:
+def learning_curves(result: EvaluationResult, points: list[dict]) -> list[dict]:
     """Success on seen and unseen foods (each food weighing the same, 95% Wilson intervals of the group's totals)
     per checkpoint of a sweep: ``points`` name each checkpoint agent's profile, algo, demos per food and steps."""
     averages = _average_rows(result)
@@ -54,7 +54,7 @@ def learning_curves(result, points: list[dict]) -> list[dict]:
     return out
 
 
-def write_learning_curves(result, points: list[dict], out_dir: Path) -> None:
+def write_learning_curves(result: EvaluationResult, points: list[dict], out_dir: Path) -> None:
     """curves.csv and curves.png: success against gradient steps (one line per demo count) and against demos
     per food (one line per step count), seen and unseen foods."""
     import matplotlib  # heavy: matplotlib, only when plotting
@@ -99,7 +99,7 @@ def write_learning_curves(result, points: list[dict], out_dir: Path) -> None:
     plt.close(fig)
 
 
-def seed_spread(result, points: list[dict]) -> list[dict]:
+def seed_spread(result: EvaluationResult, points: list[dict]) -> list[dict]:
     """Success on seen, unseen and all foods (each food weighing the same) of every training seed of each recipe
     (``points`` name each checkpoint agent's recipe and training seed), then the recipe's mean, lowest and highest
     over its seeds."""
@@ -144,7 +144,7 @@ def seed_markdown(rows: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_seed_tables(result, points: list[dict], out_dir: Path) -> None:
+def write_seed_tables(result: EvaluationResult, points: list[dict], out_dir: Path) -> None:
     """seeds.md and seeds.csv (seed_spread), and seeds/: the tables, stages and chart with each recipe's seeds
     pooled into one column (its episodes of every seed; intervals over the pooled episodes)."""
     rows = seed_spread(result, points)

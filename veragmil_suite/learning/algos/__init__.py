@@ -16,6 +16,12 @@ from __future__ import annotations
 import importlib
 import importlib.abc
 import sys
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+    from importlib.machinery import ModuleSpec
+    from types import ModuleType
 
 # robomimic package -> our module that registers into it once it is imported
 REGISTERING_MODULES = {
@@ -31,10 +37,10 @@ class _ImportAfter(importlib.abc.Loader):
         self._loader = loader
         self._then = then
 
-    def create_module(self, spec):
+    def create_module(self, spec: ModuleSpec) -> ModuleType | None:
         return self._loader.create_module(spec)
 
-    def exec_module(self, module) -> None:
+    def exec_module(self, module: ModuleType) -> None:
         self._loader.exec_module(module)
         importlib.import_module(self._then)
 
@@ -45,7 +51,9 @@ class _ImportAfter(importlib.abc.Loader):
 class _RegisterAfterImport(importlib.abc.MetaPathFinder):
     """Finds robomimic's registry packages as the other finders would, with a loader that registers ours after."""
 
-    def find_spec(self, fullname, path, target=None):
+    def find_spec(
+        self, fullname: str, path: Sequence[str] | None, target: ModuleType | None = None
+    ) -> ModuleSpec | None:
         then = REGISTERING_MODULES.get(fullname)
         if then is None:
             return None

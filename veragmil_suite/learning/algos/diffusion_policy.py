@@ -23,6 +23,7 @@ from __future__ import annotations
 import copy
 import warnings
 from collections import OrderedDict, deque
+from typing import TYPE_CHECKING
 
 import robomimic.models.obs_nets as ObsNets
 import robomimic.utils.obs_utils as ObsUtils
@@ -36,9 +37,12 @@ from torch import nn
 from veragmil_suite.learning.algos import diffusion_policy_config  # noqa: F401 - registers the config
 from veragmil_suite.learning.algos.conditional_unet1d import ConditionalUnet1D
 
+if TYPE_CHECKING:
+    from robomimic.config.config import Config
+
 
 @register_algo_factory_func("diffusion_policy")
-def algo_config_to_class(algo_config):
+def algo_config_to_class(algo_config: Config) -> tuple[type[DiffusionPolicyUNet], dict]:
     """
     Maps the algo config to the Diffusion Policy class to instantiate, with its keyword arguments.
 
@@ -182,7 +186,7 @@ class DiffusionPolicyUNet(PolicyAlgo):
     def _steps_every_batch(self) -> bool:
         return bool(self.optim_params["policy"]["learning_rate"].get("step_every_batch", False))
 
-    def process_batch_for_training(self, batch):
+    def process_batch_for_training(self, batch: dict) -> dict:
         """
         The first observation_horizon observations and prediction_horizon actions of each sample.
 
@@ -211,7 +215,7 @@ class DiffusionPolicyUNet(PolicyAlgo):
         features = TensorUtils.time_distributed({"obs": obs}, nets["policy"]["obs_encoder"], inputs_as_kwargs=True)
         return features.flatten(start_dim=1)
 
-    def train_on_batch(self, batch, epoch, validate=False):
+    def train_on_batch(self, batch: dict, epoch: int, validate: bool = False) -> dict:
         """
         Training on a single batch of data: the noise prediction loss at random diffusion steps.
 
@@ -259,7 +263,7 @@ class DiffusionPolicyUNet(PolicyAlgo):
         optim.step()
         return squared_norm.detach()
 
-    def log_info(self, info):
+    def log_info(self, info: dict) -> dict:
         """
         Process info dictionary from @train_on_batch to summarize information to pass to tensorboard for logging.
 
@@ -275,7 +279,7 @@ class DiffusionPolicyUNet(PolicyAlgo):
             log["Policy_Grad_Norms"] = info["policy_grad_norms"].item()
         return log
 
-    def on_epoch_end(self, epoch):
+    def on_epoch_end(self, epoch: int) -> None:
         """Steps robomimic's epoch schedulers; a schedule stepped every batch is stepped in train_on_batch."""
         if not self._steps_every_batch():
             super().on_epoch_end(epoch)
@@ -289,7 +293,7 @@ class DiffusionPolicyUNet(PolicyAlgo):
             self._ema_current = True
         return self._ema_nets
 
-    def reset(self):
+    def reset(self) -> None:
         """Starts an episode: no actions queued, no observations seen."""
         self._actions.clear()
         self._history = None
@@ -336,7 +340,7 @@ class DiffusionPolicyUNet(PolicyAlgo):
             actions = self.noise_scheduler.step(prediction, step, actions).prev_sample
         return actions
 
-    def get_action(self, obs_dict, goal_dict=None):
+    def get_action(self, obs_dict: dict, goal_dict: dict | None = None) -> torch.Tensor:
         """
         Get policy action outputs: the next queued action, after predicting a new chunk when the queue is empty.
 
@@ -355,11 +359,11 @@ class DiffusionPolicyUNet(PolicyAlgo):
             self._actions.extend(chunk.unbind(dim=1))
         return self._actions.popleft()
 
-    def serialize(self):
+    def serialize(self) -> dict:
         """The trained weights and the EMA's state (robomimic stores this dict as a checkpoint's model)."""
         return dict(nets=self.nets.state_dict(), ema=self.ema.state_dict() if self.ema is not None else None)
 
-    def deserialize(self, model_dict):
+    def deserialize(self, model_dict: dict) -> None:
         """
         Load model from a checkpoint.
 

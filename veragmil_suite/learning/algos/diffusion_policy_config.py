@@ -9,13 +9,15 @@ a config that trains sets them from the horizons (configs/json/diffusion_policy.
 values it needs).
 """
 
+from __future__ import annotations
+
 from robomimic.config.base_config import BaseConfig
 
 
 class DiffusionPolicyConfig(BaseConfig):
     ALGO_NAME = "diffusion_policy"
 
-    def algo_config(self):
+    def algo_config(self) -> None:
         """
         This function populates the `config.algo` attribute of the config, and is given to the `Algo` subclass
         (DiffusionPolicyUNet) through the `algo_config` argument to the constructor.

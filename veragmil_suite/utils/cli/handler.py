@@ -102,7 +102,9 @@ def error_line(error: BaseException) -> str:
     return one_line(error)
 
 
-def command(build_parser: Callable[[], argparse.ArgumentParser], interrupted: str = "interrupted"):
+def command(
+    build_parser: Callable[[], argparse.ArgumentParser], interrupted: str = "interrupted"
+) -> Callable[[Callable[[argparse.Namespace], int | None]], Callable[[list[str] | None], int]]:
     """
     Makes ``run(args) -> int`` a console program's ``main(argv=None) -> int`` (the exit status, also for --help and
     a value argparse refused): parses ``argv`` with ``build_parser()`` (kept as ``main.build_parser`` for

@@ -10,9 +10,13 @@ import contextlib
 import copy
 import inspect
 import sys
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from veragmil_suite.utils.cli.kinds import Choice, Kind, ListOf, count
+
+if TYPE_CHECKING:
+    import types
 
 
 class HelpFormatter(argparse.RawDescriptionHelpFormatter):
@@ -113,11 +117,11 @@ class Parser(argparse.ArgumentParser):
         kwargs.setdefault("formatter_class", HelpFormatter)
         super().__init__(prog=prog, description=description, allow_abbrev=False, **kwargs)
 
-    def error(self, message: str):
+    def error(self, message: str) -> NoReturn:
         """A refused command line as one line and exit 2: argparse's usage block above it is what --help is for."""
         self.exit(2, f"{self.prog}: error: {message}\n")
 
-    def add_argument(self, *names: str, aliases: Iterable[str] = (), **kwargs) -> argparse.Action:
+    def add_argument(self, *names: str, aliases: Iterable[str] = (), **kwargs: Any) -> argparse.Action:
         aliases = tuple(aliases)
         kind = kwargs.get("type")
         if (
@@ -143,7 +147,9 @@ class Parser(argparse.ArgumentParser):
         )  # fmt: skip
         self._inputs = [*getattr(self, "_inputs", []), (dest, option, many)]
 
-    def parse_known_args(self, args=None, namespace=None):
+    def parse_known_args(
+        self, args: Sequence[str] | None = None, namespace: argparse.Namespace | None = None
+    ) -> tuple[argparse.Namespace, list[str]]:
         args = sys.argv[1:] if args is None else list(args)
         namespace, extras = super().parse_known_args(respell(self, args), namespace)
         for dest, option, many in getattr(self, "_inputs", []):
@@ -157,7 +163,7 @@ class Parser(argparse.ArgumentParser):
         return namespace, extras
 
 
-def main_block(module) -> object:
+def main_block(module: types.ModuleType) -> object:
     """The compiled body of a script's ``if __name__ == "__main__":`` block (its argparse and its call)."""
     path = inspect.getsourcefile(module)
     with open(path) as f:
@@ -181,7 +187,7 @@ class _Captured(Exception):
 
 
 @contextlib.contextmanager
-def parse_args_answering(answer: Callable[[argparse.ArgumentParser], argparse.Namespace]):
+def parse_args_answering(answer: Callable[[argparse.ArgumentParser], argparse.Namespace]) -> Iterator[None]:
     """Within: every ArgumentParser.parse_args returns ``answer(parser)`` (the script's own parser is built as
     robomimic wrote it, and what it parses is decided here)."""
     original = argparse.ArgumentParser.parse_args
@@ -196,7 +202,7 @@ def _raise_captured(parser: argparse.ArgumentParser) -> argparse.Namespace:
     raise _Captured(parser)
 
 
-def script_parser(module) -> argparse.ArgumentParser:
+def script_parser(module: types.ModuleType) -> argparse.ArgumentParser:
     """The parser a script's ``if __name__ == "__main__":`` block builds (robosuite's and robomimic's scripts build
     theirs there), taken at its parse_args: nothing after that runs."""
     try:
