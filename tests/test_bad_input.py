@@ -94,6 +94,10 @@ CASES = [
     ("veragmil-train", ["--config", "{tmp}/data_list.json"], "train.data is ['a.hdf5']: it must be a string or null"),
     ("veragmil-train", ["--config", "{tmp}/out_file.json", "--dataset", SAMPLE],
      "the config's train.output_dir: {tmp}/bad.json/runs: not a directory"),
+    ("veragmil-train", ["--config", "{tmp}/no_data.json", "--dataset", SAMPLE, "--name", "../elsewhere"],
+     "argument --name: must be an experiment name: one folder's name, no path, got '../elsewhere'"),
+    ("veragmil-train", ["--config", "{tmp}/name_path.json", "--dataset", SAMPLE],
+     "the config's experiment.name: must be an experiment name: one folder's name, no path, got 'a/b'"),
     ("veragmil-train", ["--config", "{tmp}/epochs.json"], "train.num_epochs is -3: it must be a whole number of at"),
     ("veragmil-train", ["--config", "{tmp}/batch.json"], "train.batch_size is 'abc': it must be a whole number of at"),
     ("veragmil-train", ["--config", "{tmp}/flag.json"], "train.hdf5_normalize_obs is 'yes': it must be true or false"),
@@ -166,6 +170,7 @@ def _bad_files(folder: Path) -> None:
     (folder / "batch.json").write_text('{"algo_name": "bc", "train": {"batch_size": "abc"}}')
     (folder / "flag.json").write_text('{"algo_name": "bc", "train": {"hdf5_normalize_obs": "yes"}}')
     (folder / "no_data.json").write_text('{"algo_name": "bc"}')
+    (folder / "name_path.json").write_text('{"algo_name": "bc", "experiment": {"name": "a/b"}}')
     (folder / "data_list.json").write_text('{"algo_name": "bc", "train": {"data": ["a.hdf5"]}}')
     (folder / "out_file.json").write_text(
         json.dumps({"algo_name": "bc", "train": {"output_dir": f"{folder}/bad.json/runs"}})

@@ -59,7 +59,7 @@ PROGRAMS = {
         {
             "--config": cli.robomimic_config,
             "--algo": cli.robomimic_algo,
-            "--name": cli.text,
+            "--name": cli.experiment_name,
             "--dataset": cli.robomimic_dataset,
         },
     ),
@@ -172,6 +172,8 @@ def check_args(module_name: str, args: argparse.Namespace) -> None:
                 raise UsageError("give --dataset FILE (a robomimic dataset), or name it in the config's train.data")
             cli.check_option("the config's train.data", config.train.data, cli.robomimic_dataset)
         cli.check_option("the config's train.output_dir", config.train.output_dir, cli.output_folder)
+        if args.name is None:
+            cli.check_option("the config's experiment.name", config.experiment.name, cli.experiment_name)
         source = args.config if args.config is not None else f"robomimic's default {args.algo} config"
         check_observations_recorded(config, args.dataset or config.train.data, source)
     if module_name == "robomimic.scripts.playback_dataset" and args.use_obs:

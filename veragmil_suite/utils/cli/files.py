@@ -139,15 +139,18 @@ class OutputFolder(Kind):
 
 
 class FileName(Kind):
-    """A file name alone (robomimic's --output_name, written beside the dataset)."""
+    """A file or folder name alone, no path: robomimic's --output_name (written beside the dataset), an experiment's
+    name (its folder under the output folder)."""
 
-    accepted = "a file name without a folder"
+    def __init__(self, what: str = "file name", accepted: str = "a file name without a folder") -> None:
+        self.what = what
+        self.accepted = accepted
 
     def __call__(self, text: str) -> str:
-        if not str(text).strip() or os.sep in text or text in (".", ".."):
+        if not isinstance(text, str) or not text.strip() or os.sep in text or text in (".", "..") or "\n" in text:
             raise self.refuse(text)
         if len(os.fsencode(text)) > 255 - WRITE_SUFFIX_ROOM:
-            raise argparse.ArgumentTypeError(f"{text}: the file name is longer than {255 - WRITE_SUFFIX_ROOM} bytes")
+            raise argparse.ArgumentTypeError(f"{text}: the {self.what} is longer than {255 - WRITE_SUFFIX_ROOM} bytes")
         return text
 
 
@@ -238,3 +241,4 @@ output_dataset = OutputFile("dataset file")
 output_video = OutputFile("video file", suffixes=VIDEO_SUFFIXES)
 output_folder = OutputFolder()
 file_name = FileName()
+experiment_name = FileName("experiment name", "an experiment name: one folder's name, no path")
