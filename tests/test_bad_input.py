@@ -90,7 +90,7 @@ CASES = [
      "give --dataset FILE (a robomimic dataset), or name it in the config's train.data"),
     ("veragmil-train", ["--algo", "bc"], "give --dataset FILE (a robomimic dataset), or name it in the config's"),
     ("veragmil-train", ["--algo", "bc", "--dataset", SAMPLE],
-     "holds no robot0_gripper_qpos observations, which robomimic's default bc config trains on"),
+     "holds no robot0_gripper_qpos observations, which robomimic's default bc config trains on; the spoon has no"),
     ("veragmil-train", ["--config", "{tmp}/data_list.json"], "train.data is ['a.hdf5']: it must be a string or null"),
     ("veragmil-train", ["--config", "{tmp}/out_file.json", "--dataset", SAMPLE],
      "the config's train.output_dir: {tmp}/bad.json/runs: not a directory"),

@@ -237,6 +237,11 @@ def check_observations_recorded(config: Any, dataset: str, source: str) -> None:
         return
     if set(missing) <= set(WRENCH_OBSERVATIONS):
         hint = "record them with the wrist sensor (veragmil-collect --wrench; veragmil-study does for the wrench set)"
+    elif any(key.endswith("_gripper_qpos") for key in missing):
+        hint = (
+            "the spoon has no gripper joints: train with configs/json/ (robomimic's templates with this task's "
+            "observations) or leave the key out"
+        )
     else:
         hint = "record them, or train on observations it holds"
     raise UsageError(f"{dataset} holds no {', '.join(missing)} observations, which {source} trains on; {hint}")
