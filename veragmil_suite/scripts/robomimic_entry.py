@@ -170,10 +170,11 @@ def check_args(module_name: str, args: argparse.Namespace) -> None:
         if args.dataset is None:
             if config.train.data is None:
                 raise UsageError("give --dataset FILE (a robomimic dataset), or name it in the config's train.data")
-            cli.check_option("the config's train.data", config.train.data, cli.robomimic_dataset)
-        cli.check_option("the config's train.output_dir", config.train.output_dir, cli.output_folder)
+            cli.check_option("--config's train.data", config.train.data, cli.robomimic_dataset)
+        whose = "--config's" if args.config is not None else f"robomimic's default {args.algo} config's"
+        cli.check_option(f"{whose} train.output_dir", config.train.output_dir, cli.output_folder)
         if args.name is None:
-            cli.check_option("the config's experiment.name", config.experiment.name, cli.experiment_name)
+            cli.check_option(f"{whose} experiment.name", config.experiment.name, cli.experiment_name)
         source = args.config if args.config is not None else f"robomimic's default {args.algo} config"
         check_observations_recorded(config, args.dataset or config.train.data, source)
     if module_name == "robomimic.scripts.playback_dataset" and args.use_obs:
