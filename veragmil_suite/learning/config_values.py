@@ -1,4 +1,4 @@
-"""The values a robomimic config may hold, checked before a training starts.
+"""The values a robomimic config may hold, checked before a training starts, and the config a training builds of them.
 
 robomimic's ``Config.update`` checks a config's keys, not its values: a batch size of ``"abc"`` or a sequence length
 of 0 reach torch after the dataset has loaded (a TypeError, an AssertionError), and a negative epoch count trains
@@ -11,9 +11,12 @@ from __future__ import annotations
 import fnmatch
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from veragmil_suite.utils.numbers import is_number, is_whole
+
+if TYPE_CHECKING:
+    from robomimic.config.config import Config
 
 
 @dataclass(frozen=True)
@@ -148,3 +151,14 @@ def value_problem(config: Mapping[str, Any], defaults: Mapping[str, Any]) -> str
         if kind is not None and value is not None and not kind[1](value):
             return f"{name} is {value!r}: it must be {kind[0]}, as robomimic's default {default!r} is"
     return None
+
+
+def build_config(values: Mapping[str, Any]) -> Config:
+    """robomimic's config of ``values``' algo_name with ``values`` written over its defaults, as robomimic's train.py
+    builds it (robomimic raises on a key its config lacks)."""
+    from robomimic.config import config_factory  # heavy: robomimic, imports torch
+
+    config = config_factory(values["algo_name"])
+    with config.values_unlocked():
+        config.update(values)
+    return config

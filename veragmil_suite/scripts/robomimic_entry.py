@@ -27,6 +27,7 @@ import h5py
 
 from veragmil_suite.data.schema import filter_key_demos, missing_observations
 from veragmil_suite.learning import robomimic_compat, robomimic_scripts, training_resume
+from veragmil_suite.learning.config_values import build_config
 from veragmil_suite.learning.observation_sets import WRENCH_OBSERVATIONS
 from veragmil_suite.utils import cli
 from veragmil_suite.utils.cli.handler import UsageError
@@ -192,15 +193,7 @@ def check_args(module_name: str, args: argparse.Namespace) -> None:
 
 def training_config(args: argparse.Namespace) -> Any:
     """The robomimic config a training runs: its algorithm's defaults, updated by --config (already checked)."""
-    from robomimic.config import config_factory  # heavy: robomimic, imports torch
-
-    if args.config is None:
-        return config_factory(args.algo)
-    values = cli.json_file(args.config)
-    config = config_factory(values["algo_name"])
-    with config.values_unlocked():
-        config.update(values)
-    return config
+    return build_config(cli.json_file(args.config) if args.config is not None else {"algo_name": args.algo})
 
 
 def _option(dest: str) -> str:

@@ -14,7 +14,7 @@ from typing import Any
 import h5py
 
 from veragmil_suite.learning.checkpoints import read_checkpoint
-from veragmil_suite.learning.config_values import value_problem
+from veragmil_suite.learning.config_values import build_config, value_problem
 from veragmil_suite.utils.cli.kinds import Kind, robomimic_algos
 
 # Suffixes our writers append to an output's name while it is written (datasets.py: ".partial"; pipeline.py:
@@ -202,11 +202,9 @@ def _robomimic_config(path: str) -> None:
         raise ValueError(f"algo_name {config.get('algo_name')!r} is not one of robomimic's: {', '.join(algos)}")
     from robomimic.config import config_factory  # heavy: robomimic, imports torch
 
-    base = config_factory(config["algo_name"])
-    defaults = json.loads(base.dump())  # a copy: update() writes into the config's own nodes
+    defaults = json.loads(config_factory(config["algo_name"]).dump())
     try:
-        with base.values_unlocked():
-            base.update(config)
+        build_config(config)
     except (RuntimeError, KeyError, AttributeError) as error:
         raise ValueError(one_line(error)) from None
     problem = value_problem(config, defaults)
