@@ -7,21 +7,10 @@ Run from the repository root: python results/grid_size_expert_bcq/probe/latent.p
 import sys
 
 import torch
-
-import veragmil_suite.evaluation.agents as agents
+from bowl import grid_bowl
 
 checkpoint, food, episode = sys.argv[1], sys.argv[2], int(sys.argv[3])
-task = agents.EpisodeTask(
-    agent="probe",
-    spec=agents.parse_spec(checkpoint),
-    food=food,
-    episode=episode,
-    seed=100000 + episode,
-    horizon=400,
-    env_kwargs={"physics": "calibrated"},
-)
-env, obs, act, step = agents.episode_env(task)
-rollout, _ = agents._policy(task.spec.target, "cpu", None)
+env, obs, act, step, rollout = grid_bowl(checkpoint, food, episode)
 sampler = rollout.policy.nets["action_sampler"]
 n = 100
 for t in range(61):

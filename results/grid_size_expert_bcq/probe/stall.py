@@ -10,23 +10,12 @@ import sys
 
 import numpy as np
 import torch
-
-import veragmil_suite.evaluation.agents as agents
+from bowl import grid_bowl
 
 checkpoint, food = sys.argv[1], sys.argv[2]
 EVERY = 10  # steps between looks
 for episode in map(int, sys.argv[3:]):
-    task = agents.EpisodeTask(
-        agent="probe",
-        spec=agents.parse_spec(checkpoint),
-        food=food,
-        episode=episode,
-        seed=100000 + episode,
-        horizon=400,
-        env_kwargs={"physics": "calibrated"},
-    )
-    env, obs, act, step = agents.episode_env(task)
-    rollout, _ = agents._policy(task.spec.target, "cpu", None)
+    env, obs, act, step, rollout = grid_bowl(checkpoint, food, episode)
     algo = rollout.policy
     stages = []
     for t in range(400):
