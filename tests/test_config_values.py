@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from veragmil_suite.learning import robomimic_compat
-from veragmil_suite.learning.config_values import BOUNDS, value_problem
+from veragmil_suite.learning.config_values import BOUNDS, leaves, value_problem
 
 CONFIG_DIR = Path(__file__).resolve().parents[1] / "configs" / "json"
 
@@ -88,15 +88,6 @@ def test_every_bound_names_keys_robomimic_has():
     robomimic_compat.install()
     from robomimic.config.base_config import REGISTERED_CONFIGS
 
-    keys = set()
-    for algo in REGISTERED_CONFIGS:
-        stack = [("", _defaults(algo))]
-        while stack:
-            prefix, node = stack.pop()
-            for key, value in node.items():
-                if isinstance(value, dict):
-                    stack.append((f"{prefix}{key}.", value))
-                else:
-                    keys.add(f"{prefix}{key}")
+    keys = {name for algo in REGISTERED_CONFIGS for name, _ in leaves(_defaults(algo))}
     for pattern in BOUNDS:
         assert any(fnmatch.fnmatchcase(k, pattern) for k in keys), pattern

@@ -113,11 +113,12 @@ def _kind_of(default: Any) -> tuple[str, Any] | None:
     return None
 
 
-def _leaves(values: Mapping[str, Any], prefix: str = "") -> Iterator[tuple[str, Any]]:
+def leaves(values: Mapping[str, Any], prefix: str = "") -> Iterator[tuple[str, Any]]:
+    """Each value of a nested config under its dotted key (``train.batch_size``)."""
     for key, value in values.items():
         name = f"{prefix}{key}"
         if isinstance(value, Mapping):
-            yield from _leaves(value, f"{name}.")
+            yield from leaves(value, f"{name}.")
         else:
             yield name, value
 
@@ -135,21 +136,19 @@ def value_problem(config: Mapping[str, Any], defaults: Mapping[str, Any]) -> str
     """The first value of ``config`` (a robomimic config as JSON gives it) that robomimic cannot train with, named
     with what its key accepts; None when every value can stand. ``defaults`` is robomimic's config of the same algo
     as a dict. A value may be null (robomimic's "off") except where a bound says otherwise."""
-    for name, value in _leaves(config):
+    for name, value in leaves(config):
         bound = next((b for pattern, b in BOUNDS.items() if fnmatch.fnmatchcase(name, pattern)), None)
         if bound is not None:
             if not bound.accepts(value):
                 return f"{name} is {value!r}: it must be {bound.describe()}"
             continue
-        known, default = _lookup(defaults, name)
         if name in OPEN_DEFAULTS:
-            kind = _kind_of(OPEN_DEFAULTS[name])
-            if kind is not None and value is not None and not kind[1](value):
-                return f"{name} is {value!r}: it must be {kind[0]} or null"
-            continue
-        kind = _kind_of(default) if known else None
+            kind, reason = _kind_of(OPEN_DEFAULTS[name]), " or null"
+        else:
+            known, default = _lookup(defaults, name)
+            kind, reason = (_kind_of(default) if known else None), f", as robomimic's default {default!r} is"
         if kind is not None and value is not None and not kind[1](value):
-            return f"{name} is {value!r}: it must be {kind[0]}, as robomimic's default {default!r} is"
+            return f"{name} is {value!r}: it must be {kind[0]}{reason}"
     return None
 
 

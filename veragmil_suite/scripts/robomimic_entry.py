@@ -172,12 +172,12 @@ def check_args(module_name: str, args: argparse.Namespace) -> None:
             if config.train.data is None:
                 raise UsageError("give --dataset FILE (a robomimic dataset), or name it in the config's train.data")
             cli.check_option("--config's train.data", config.train.data, cli.robomimic_dataset)
-        whose = "--config's" if args.config is not None else f"robomimic's default {args.algo} config's"
+        default = f"robomimic's default {args.algo} config"
+        whose = "--config's" if args.config is not None else f"{default}'s"
         cli.check_option(f"{whose} train.output_dir", config.train.output_dir, cli.output_folder)
         if args.name is None:
             cli.check_option(f"{whose} experiment.name", config.experiment.name, cli.experiment_name)
-        source = args.config if args.config is not None else f"robomimic's default {args.algo} config"
-        check_observations_recorded(config, args.dataset or config.train.data, source)
+        check_observations_recorded(config, args.dataset or config.train.data, args.config or default)
     if module_name == "robomimic.scripts.playback_dataset" and args.use_obs:
         if args.video_path is None:
             raise UsageError("--use-obs plays the stored observations back into a video: give --video_path")
