@@ -62,9 +62,10 @@ test: test-setup lint
 	wait $$realtime_pid; realtime=$$?; echo "real-time tests (run beside the rest):"; cat $(REALTIME_LOG); \
 	exit $$(( rest || realtime ))
 
+# The whole tree: the package, tests, scripts, benchmarks, the results folders' probes and the docs' Python blocks
 lint: setup
-	$(BIN)/ruff check veragmil_suite tests scripts benchmarks docs/scoop_png.py
-	$(BIN)/ruff format --check veragmil_suite tests scripts benchmarks docs/scoop_png.py
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
 
 bench: setup
 	$(BIN)/python -m veragmil_suite.scripts.bench

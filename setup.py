@@ -54,8 +54,9 @@ setup(
         "diffusers==0.36.0",
     ],
     extras_require={
-        # pytest-timeout: make test gives each test a deadline, so a hung test fails with its stack instead of hanging CI
-        "test": ["pytest>=7", "pytest-xdist==3.8.0", "pytest-timeout==2.4.0", "ruff>=0.5"],
+        # pytest-timeout: make test gives each test a deadline, so a hung test fails with its stack, not a hung CI
+        # ruff pinned: make test checks the tree's formatting, and the formatter's output moves between releases
+        "test": ["pytest>=7", "pytest-xdist==3.8.0", "pytest-timeout==2.4.0", "ruff==0.17.6"],
         # ray: --ray of veragmil-collect, veragmil-evaluate and veragmil-study (veragmil_suite.utils.distributed)
         "ray": [f"ray=={RAY_VERSION}"],
         # the Unitree G1 (robots="G1FixedLowerBody" or "G1ArmsOnly"); robosuite imports it when it is installed

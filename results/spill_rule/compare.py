@@ -24,7 +24,10 @@ def _by_agent_food(*paths: str) -> dict:
 
 def main(bowl_csv: str, *scooped_csvs: str) -> None:
     bowl, scooped = _by_agent_food(bowl_csv), _by_agent_food(*scooped_csvs)
-    print("| agent | food | episodes | success, spill of the scooped volume | of the bowl | flipped to success | to failure |")
+    print(
+        "| agent | food | episodes | success, spill of the scooped volume | of the bowl "
+        "| flipped to success | to failure |"
+    )
     print("|---|---|---:|---:|---:|---:|---:|")
     totals = defaultdict(lambda: [0, 0, 0])
     for key in sorted(bowl, key=lambda k: (k[0], list(bowl[k].values())[0]["food"])):

@@ -61,6 +61,7 @@ for seed in seeds:
     rate = step / (time.time() - start)
     print(
         seed, "success", info["success"], "spoon", info["grains_in_spoon"], f"{info['spoon_mass_g']:.2f}g",
-        "spilled", info["grains_spilled"], f"reach {reach:.2f}m", "steps", step, f"{rate:.1f}sps", " ".join(log), flush=True,
+        "spilled", info["grains_spilled"], f"reach {reach:.2f}m", "steps", step, f"{rate:.1f}sps", " ".join(log),
+        flush=True,
     )  # fmt: skip
 print("wins", wins, "/", len(seeds))

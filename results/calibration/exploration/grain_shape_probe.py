@@ -73,7 +73,7 @@ if "expert" not in skip:
         d = env.sim.data._data
         solver_s = step_s = 0.0
         iters, start = [], time.time()
-        for step in range(600):
+        for step in range(600):  # noqa: B007 (the count after the loop is the episode's length)
             action = expert.agent(obs)
             if action is None:
                 break

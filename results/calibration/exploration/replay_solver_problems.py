@@ -34,7 +34,9 @@ for qpos, qvel, ctrl in zip(states["qpos"], states["qvel"], states["ctrl"], stri
     fastest.append(float(np.abs(data.cvel[grains, 3:]).max()))
 it = np.array(iterations)
 print(
-    f"mujoco {mujoco.__version__}, {threads or 'no'} pool threads: {len(states['qpos'])} control steps of {substeps} substeps in {seconds:.2f} s; "
-    f"CG iterations mean {it.mean():.1f}, at the cap ({model.opt.iterations}) {(it >= model.opt.iterations).mean():.2f}; "
+    f"mujoco {mujoco.__version__}, {threads or 'no'} pool threads: "
+    f"{len(states['qpos'])} control steps of {substeps} substeps in {seconds:.2f} s; "
+    f"CG iterations mean {it.mean():.1f}, "
+    f"at the cap ({model.opt.iterations}) {(it >= model.opt.iterations).mean():.2f}; "
     f"fastest grain after a step: median {np.median(fastest):.3f} m/s, max {max(fastest):.3f} m/s"
 )

@@ -1,6 +1,6 @@
 """One calibrated grain on an 8 degree plane (calibration.slope), with and without rolling and torsional friction rows.
 
-    python results/calibration/exploration/slope_by_rows.py
+python results/calibration/exploration/slope_by_rows.py
 """
 
 from dataclasses import replace

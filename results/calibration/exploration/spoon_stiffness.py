@@ -35,7 +35,8 @@ for timeconst in (float(t) for t in sys.argv[1].split(",")):
         rows.append(f"{info['grains_in_spoon']}/{info['spoon_mass_g']:.2f}g/sp{info['grains_spilled']}/{reach:.2f}m")
     env.close()
     print(
-        f"spoon solref {timeconst} s: level spoonful rice {spoonfuls['rice']:.2f} g, barley {spoonfuls['barley']:.2f} g;"
+        f"spoon solref {timeconst} s: level spoonful rice {spoonfuls['rice']:.2f} g,"
+        f" barley {spoonfuls['barley']:.2f} g;"
         f" expert on rice {wins}/{len(seeds)} (grains/grams/spilled/furthest grain: {', '.join(rows)})",
         flush=True,
     )

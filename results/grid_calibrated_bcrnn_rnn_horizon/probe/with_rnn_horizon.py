@@ -12,8 +12,10 @@ import torch
 source, target, horizon = sys.argv[1], sys.argv[2], int(sys.argv[3])
 ckpt = torch.load(source, map_location="cpu")
 config = json.loads(ckpt["config"])
-print(f"{source}: algo {ckpt['algo_name']}, rnn.horizon {config['algo']['rnn']['horizon']}, "
-      f"seq_length {config['train']['seq_length']} -> rnn.horizon {horizon}")
+print(
+    f"{source}: algo {ckpt['algo_name']}, rnn.horizon {config['algo']['rnn']['horizon']}, "
+    f"seq_length {config['train']['seq_length']} -> rnn.horizon {horizon}"
+)
 config["algo"]["rnn"]["horizon"] = horizon
 ckpt["config"] = json.dumps(config, indent=4)
 torch.save(ckpt, target)

@@ -1,10 +1,12 @@
 """Per grid bowl (seed 100000 + i) of an agent (a checkpoint, or "expert"): success, the step, stage and pieces in the
-spoon at the first piece spilled, the step and load at which the post-scoop pose is first reached, the end, and the eef's x from the rim's centre when it
-rises out of the pile (as lift_x.py measures it in a recording).
+spoon at the first piece spilled, the step and load at which the post-scoop pose is first reached, the end, and the
+eef's x from the rim's centre when it rises out of the pile (as lift_x.py measures it in a recording).
 Run from the repository root: python results/grid_size_expert_bc/probe/first_spill.py <agent> <food> <bowl>..."""
 
 import sys
+
 import numpy as np
+
 import veragmil_suite.evaluation.agents as agents
 
 agent, food = sys.argv[1], sys.argv[2]
