@@ -3,10 +3,7 @@
 # per food) from the committed results.json of the folders that scored them, then shapes the pooled tables like the
 # paper's. Run from the repository root: bash results/grid_calibrated_tables/pool.sh
 set -euo pipefail
-R=results
-OUT=runs/grid_calibrated_tables/eval
-A=()
-source results/grid_calibrated_tables/add_agents.sh  # add FOLDER MODEL
+source results/grid_calibrated_tables/pool_tables.sh  # add FOLDER MODEL, pool_tables NAME
 add grid_calibrated_noload "expert operator"
 add grid_calibrated_noload "expert BC no-load obs"
 add grid_calibrated_bcrnn_50k_seeds "expert BC-RNN no-load obs"
@@ -20,13 +17,10 @@ add grid_calibrated_diffusion_9k "expert Diffusion Policy no-load obs"
 add grid_calibrated_diffusion_9k "spacemouse Diffusion Policy no-load obs"
 # the paper's questions bowl by bowl, seed by seed (paired.md): VR-like against 3D-mouse data for each algorithm and
 # the operators, then the paper's order of algorithms on the expert data
-P=()
 for model in operator "BC no-load obs" "BCQ no-load obs" "BC-RNN no-load obs" "Diffusion Policy no-load obs"; do
   P+=(--paired "spacemouse $model" "expert $model")
 done
 for model in "BC-RNN no-load obs" "BCQ no-load obs" "Diffusion Policy no-load obs"; do
   P+=(--paired "expert BC no-load obs" "expert $model")
 done
-veragmil-pool-results "$OUT" "${A[@]}" "${P[@]}"
-python results/grid_calibrated_tables/paper_tables.py "$OUT/seeds/table.csv" > results/grid_calibrated_tables/paper_tables.md
-cp -r "$OUT"/{table.md,table.csv,stages.md,stages.csv,seeds.md,seeds.csv,success.png,seeds,paired.md} results/grid_calibrated_tables/
+pool_tables grid_calibrated_tables

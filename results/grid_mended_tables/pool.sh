@@ -5,10 +5,7 @@
 # `no-load-rot` observations (the best spacemouse recipe, ../grid_mended_spacemouse_bc_noops_rot/). The grid's 20
 # bowls per food, the task's spill rule. Run from the repository root: bash results/grid_mended_tables/pool.sh
 set -euo pipefail
-R=results
-OUT=runs/grid_mended_tables/eval
-A=()
-source results/grid_calibrated_tables/add_agents.sh  # add FOLDER MODEL
+source results/grid_calibrated_tables/pool_tables.sh  # add FOLDER MODEL, pool_tables NAME
 add grid_mended_operators "expert operator"
 add grid_mended_expert_bc "expert BC no-load obs"
 add grid_mended_expert_bcq "expert BCQ no-load obs"
@@ -17,12 +14,9 @@ add grid_mended_spacemouse_bc_noops_rot "spacemouse BC no-load-rot obs no-noops"
 add grid_mended_spacemouse_bcq_noops_rot "spacemouse BCQ no-load-rot obs no-noops"
 # the paper's questions bowl by bowl, seed by seed (paired.md): VR-like against 3D-mouse data for each algorithm and
 # the operators, then the paper's order of algorithms on each data half
-P=(--paired "spacemouse operator" "expert operator")
+P+=(--paired "spacemouse operator" "expert operator")
 P+=(--paired "spacemouse BC no-load-rot obs no-noops" "expert BC no-load obs")
 P+=(--paired "spacemouse BCQ no-load-rot obs no-noops" "expert BCQ no-load obs")
 P+=(--paired "expert BC no-load obs" "expert BCQ no-load obs")
 P+=(--paired "spacemouse BC no-load-rot obs no-noops" "spacemouse BCQ no-load-rot obs no-noops")
-rm -rf runs/grid_mended_tables
-veragmil-pool-results "$OUT" "${A[@]}" "${P[@]}"
-python results/grid_calibrated_tables/paper_tables.py "$OUT/seeds/table.csv" > results/grid_mended_tables/paper_tables.md
-cp -r "$OUT"/{table.md,table.csv,stages.md,stages.csv,seeds.md,seeds.csv,success.png,seeds,paired.md} results/grid_mended_tables/
+pool_tables grid_mended_tables

@@ -5,11 +5,7 @@
 # evaluations do), pasta, peas and flakes on 100 solver iterations, the spacemouse data's pauses cut (`--drop-noops`).
 # The grid's 20 bowls per food, the task's spill rule. Run from the repository root: bash results/grid_size_tables/pool.sh
 set -euo pipefail
-export PATH=$PWD/.venv/bin:$PATH
-R=results
-OUT=runs/grid_size_tables/eval
-A=()
-source results/grid_calibrated_tables/add_agents.sh  # add FOLDER MODEL
+source results/grid_calibrated_tables/pool_tables.sh  # add FOLDER MODEL, pool_tables NAME
 add grid_mended_operators "expert operator"
 add grid_size_expert_bc "expert BC no-load-size obs"
 add grid_size_expert_bcq "expert BCQ no-load-size obs"
@@ -18,12 +14,9 @@ add grid_size_spacemouse_bc "spacemouse BC no-load-size obs no-noops"
 add grid_size_spacemouse_bcq "spacemouse BCQ no-load-size obs no-noops"
 # the paper's questions bowl by bowl, seed by seed (paired.md): VR-like against 3D-mouse data for each algorithm and
 # the operators, then the paper's order of algorithms on each data half
-P=(--paired "spacemouse operator" "expert operator")
+P+=(--paired "spacemouse operator" "expert operator")
 P+=(--paired "spacemouse BC no-load-size obs no-noops" "expert BC no-load-size obs")
 P+=(--paired "spacemouse BCQ no-load-size obs no-noops" "expert BCQ no-load-size obs")
 P+=(--paired "expert BC no-load-size obs" "expert BCQ no-load-size obs")
 P+=(--paired "spacemouse BC no-load-size obs no-noops" "spacemouse BCQ no-load-size obs no-noops")
-rm -rf runs/grid_size_tables
-veragmil-pool-results "$OUT" "${A[@]}" "${P[@]}"
-python results/grid_calibrated_tables/paper_tables.py "$OUT/seeds/table.csv" > results/grid_size_tables/paper_tables.md
-cp -r "$OUT"/{table.md,table.csv,stages.md,stages.csv,seeds.md,seeds.csv,success.png,seeds,paired.md} results/grid_size_tables/
+pool_tables grid_size_tables
