@@ -207,6 +207,21 @@ def test_a_journaled_episode_reads_back_and_is_journaled_the_same_way(tmp_path):
     assert Journal(path, resume=False).set_aside[0].name == "episodes.replaced.1.jsonl" and aside.is_file()
 
 
+def test_a_journal_killed_mid_line_resumes_its_whole_episodes_and_journals_the_next_on_a_line_of_its_own(tmp_path):
+    path = tmp_path / JOURNAL_NAME
+    path.write_text(JOURNAL_LINE + "\n" + JOURNAL_LINE_NOW[: len(JOURNAL_LINE_NOW) // 2])  # killed mid-line
+    task = EpisodeTask("renamed", parse_spec("expert"), "pasta", 3, 0, 80, {"n_grains": 12, "pile_variants": 1})
+    journal = Journal(path, resume=True)
+    record = journal.get(task)
+    assert record is not None and len(journal.records) == 1
+    later = replace(task, seed=1)
+    journal.add(later, replace(record, seed=1))
+    lines = path.read_text().splitlines()
+    assert lines[0] == JOURNAL_LINE and len(lines) == 2 and json.loads(lines[1])["key"] == Journal.key(later)
+    again = Journal(path, resume=True)
+    assert again.get(task) is not None and again.get(later) is not None
+
+
 def test_an_episode_journaled_before_spill_limits_were_recorded_takes_its_env_kwargs_limit(tmp_path):
     """A journal of a run scored under spill_limit_of="bowl", written before records named their spill limit, reads
     back as scored under "bowl" (its key holds the env kwargs), so its tables say which rule made them."""

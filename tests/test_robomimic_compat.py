@@ -325,3 +325,39 @@ def test_recorded_observations_are_carried_only_where_their_shapes_match(tmp_pat
         np.testing.assert_array_equal(f[f"data/demo_0/next_obs/{force}"][:-1], recorded[1:])
         np.testing.assert_array_equal(f[f"data/demo_0/next_obs/{force}"][-1], np.full(3, -1.0))
         np.testing.assert_array_equal(f[f"data/demo_0/obs/{acc}"][()], np.full((5, 3), -1.0))
+
+
+def _writing_script(fail: bool) -> types.ModuleType:
+    """A stand-in for robomimic's run_trained_agent: opens its video and dataset in place, as robomimic does."""
+
+    def run_trained_agent(args):
+        Path(args.video_path).write_bytes(b"half a video")
+        with h5py.File(args.dataset_path, "w") as f:
+            f.create_group("data")
+            if fail:
+                raise RuntimeError("killed part-way")
+
+    return types.SimpleNamespace(run_trained_agent=run_trained_agent)
+
+
+def test_run_agent_outputs_are_written_whole_or_left_as_they_were(tmp_path):
+    """veragmil-run-agent's --video_path and --dataset_path (robomimic opens both in place; --force replaces them):
+    a run that fails part-way leaves the earlier files and no temporary one; one that ends puts the new ones in
+    place."""
+    video, dataset = tmp_path / "rollouts.mp4", tmp_path / "rollouts.hdf5"
+    video.write_bytes(b"the earlier video")
+    with h5py.File(dataset, "w") as f:
+        f.create_group("earlier")
+    args = types.SimpleNamespace(video_path=str(video), dataset_path=str(dataset))
+    failing = _writing_script(fail=True)
+    robomimic_scripts.prepare_outputs_whole(failing, "run_trained_agent", ("dataset_path",))
+    with pytest.raises(RuntimeError):
+        failing.run_trained_agent(args)
+    assert video.read_bytes() == b"the earlier video" and list(h5py.File(dataset, "r")) == ["earlier"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rollouts.hdf5", "rollouts.mp4"]
+    assert (args.video_path, args.dataset_path) == (str(video), str(dataset))
+    ending = _writing_script(fail=False)
+    robomimic_scripts.prepare_outputs_whole(ending, "run_trained_agent", ("dataset_path",))
+    ending.run_trained_agent(args)
+    assert video.read_bytes() == b"half a video" and list(h5py.File(dataset, "r")) == ["data"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rollouts.hdf5", "rollouts.mp4"]

@@ -324,6 +324,9 @@ def test_a_killed_training_resumes_to_the_weights_of_an_uninterrupted_one(
     assert f"veragmil-train: {state.parent} was trained with another config" in refused.err and state.exists()
     assert "Traceback" not in refused.out + refused.err
 
+    # robomimic rewrites its config.json in place at every start: one a kill cut short does not stop the resume
+    robomimic_config = state.parent / "config.json"
+    robomimic_config.write_text(robomimic_config.read_text()[:100])
     config = _resumable_config(low_dim_dataset, out, "run", epochs)
     resumed = _run("veragmil-train", "--config", config, "--resume")
     assert resumed.returncode == 0, resumed.stdout[-3000:] + resumed.stderr[-3000:]
@@ -335,3 +338,15 @@ def test_a_killed_training_resumes_to_the_weights_of_an_uninterrupted_one(
     assert expected.keys() == got.keys()
     for key in expected:
         assert torch.equal(expected[key], got[key]), key
+
+
+def test_the_config_a_run_held_is_read_from_whichever_record_is_whole(tmp_path):
+    from veragmil_suite.learning import training_resume
+
+    assert training_resume.held_config(tmp_path) is None
+    (tmp_path / "config.json").write_text('{"algo_name": "bc"}')
+    assert training_resume.held_config(tmp_path) == {"algo_name": "bc"}  # a run started before our record
+    (tmp_path / "config.json").write_text('{"algo_na')  # robomimic's, cut short
+    assert training_resume.held_config(tmp_path) is None
+    (tmp_path / training_resume.HELD_CONFIG_FILE).write_text('{"algo_name": "bc_rnn"}')
+    assert training_resume.held_config(tmp_path) == {"algo_name": "bc_rnn"}

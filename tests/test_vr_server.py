@@ -329,6 +329,18 @@ def test_https_with_a_generated_certificate_that_is_kept(tmp_path):
     assert vr_tls._cert_names(cert) >= {"localhost", "127.0.0.1", "10.1.2.3"}  # a new address: remade
 
 
+def test_a_key_that_is_not_the_certificates_is_remade_with_it(tmp_path):
+    """The key and the certificate are replaced one after the other: a kill between leaves a new key beside the old
+    certificate, which no server could load. The next start makes a matching pair."""
+    cert, key = vr_tls.ensure_certificate(["localhost"], tmp_path / "a")
+    _, other_key = vr_tls.ensure_certificate(["localhost"], tmp_path / "b")
+    key.write_bytes(other_key.read_bytes())
+    with pytest.raises(ssl.SSLError):
+        ssl.create_default_context(ssl.Purpose.CLIENT_AUTH).load_cert_chain(cert, key)
+    cert, key = vr_tls.ensure_certificate(["localhost"], tmp_path / "a")
+    ssl.create_default_context(ssl.Purpose.CLIENT_AUTH).load_cert_chain(cert, key)
+
+
 def test_a_localhost_server_answers_only_to_localhost_names(server):
     for host in (f"localhost:{server.port}", f"127.0.0.1:{server.port}", f"[::1]:{server.port}"):
         request = urllib.request.Request(server.url, headers={"Host": host})

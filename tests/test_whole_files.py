@@ -5,6 +5,8 @@ import os
 import pytest
 
 from veragmil_suite.utils.whole_files import (
+    append_line,
+    json_lines,
     put_folder_in_place,
     recover_folder,
     same_file,
@@ -80,3 +82,23 @@ def test_a_folder_put_in_place_leaves_one_complete_folder_whenever_it_is_killed(
     (tmp_path / ".export.replaced").mkdir()
     recover_folder(output)
     assert (output / "meta.json").read_text() == "new" and sorted(p.name for p in tmp_path.iterdir()) == ["export"]
+
+
+def test_a_line_a_kill_cut_short_is_left_out_and_cut_off_before_the_next(tmp_path):
+    path = tmp_path / "episodes.jsonl"
+    append_line(path, '{"episode": 0}')
+    with open(path, "a") as f:
+        f.write('{"episode": 1, "succ')  # killed mid-write
+    assert json_lines(path) == [{"episode": 0}]
+    append_line(path, '{"episode": 1}')
+    assert path.read_text() == '{"episode": 0}\n{"episode": 1}\n'
+    assert json_lines(path) == [{"episode": 0}, {"episode": 1}]
+
+
+def test_a_damaged_line_inside_a_record_is_skipped_not_fatal(tmp_path):
+    path = tmp_path / "rows.jsonl"
+    path.write_text('{"a": 1}\n{"a": 2{"a": 3}\n\n{"a": 4}\n')
+    assert json_lines(path) == [{"a": 1}, {"a": 4}]
+    empty = tmp_path / "empty.jsonl"
+    append_line(empty, "{}")
+    assert json_lines(empty) == [{}]

@@ -15,6 +15,8 @@ import importlib.util
 import sys
 from pathlib import Path
 
+from veragmil_suite.utils.whole_files import write_text_whole
+
 # macro name -> value, per package; the rest keep the package's defaults
 PRIVATE_MACROS: dict[str, dict[str, object]] = {
     "robosuite": {"CONSOLE_LOGGING_LEVEL": "WARNING"},
@@ -48,7 +50,7 @@ def write_private_macros(folder: Path, package: str, macros: dict[str, object]) 
     path = Path(folder) / PRIVATE_MACROS_FILE
     if path.exists():
         return None
-    path.write_text(private_macros_text(package, macros))
+    write_text_whole(path, private_macros_text(package, macros))
     return path
 
 

@@ -28,6 +28,7 @@ from veragmil_suite.models.bowl import Bowl
 from veragmil_suite.models.foods import FOODS, PHYSICS
 from veragmil_suite.models.grains import GrainPile
 from veragmil_suite.models.scoop_task import GRAIN_SLEEP_TOLERANCE, PHYSICS_TIMESTEP_S, pile_solver_options
+from veragmil_suite.utils.whole_files import append_line, json_lines
 
 CREEP_LIMIT_M = 5e-4  # a grain of a pile at rest moves less than this over the watch
 
@@ -98,8 +99,7 @@ def main(argv: list[str] | None = None) -> int:
     tolerance = GRAIN_SLEEP_TOLERANCE if args.sleep == "task" else None
     done = set()
     if args.jsonl.exists():
-        for line in args.jsonl.read_text().splitlines():
-            r = json.loads(line)
+        for r in json_lines(args.jsonl):
             done.add((r["food"], r["physics"], r["seed"], r.get("sleep_tolerance")))
     args.jsonl.parent.mkdir(parents=True, exist_ok=True)
     for food in args.foods:
@@ -107,9 +107,8 @@ def main(argv: list[str] | None = None) -> int:
             if (food, args.physics, seed, tolerance) in done:
                 continue
             row = settle_and_watch(food, args.physics, seed, sleep_tolerance=tolerance)
-            with args.jsonl.open("a") as f:
-                f.write(json.dumps(row) + "\n")
-    rows = [json.loads(line) for line in args.jsonl.read_text().splitlines()]
+            append_line(args.jsonl, json.dumps(row))
+    rows = json_lines(args.jsonl)
     for food in args.foods:
         mine = [
             r

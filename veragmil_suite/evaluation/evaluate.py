@@ -43,7 +43,7 @@ from veragmil_suite.models.humanoid import check_robot
 from veragmil_suite.utils.canonical import canonical
 from veragmil_suite.utils.distributed import Resources, WorkerLost, ray_session, run_pieces
 from veragmil_suite.utils.host import outcome_platform, versions
-from veragmil_suite.utils.whole_files import write_text_whole
+from veragmil_suite.utils.whole_files import append_line, json_lines, write_text_whole
 
 
 def evaluate(
@@ -283,16 +283,13 @@ class Journal:
     def _move_aside(self, tag: str, written_on: dict) -> Path:
         names = (f"{self.path.stem}.{tag}{f'.{n}' if n else ''}{self.path.suffix}" for n in itertools.count())
         aside = next(p for p in map(self.path.with_name, names) if not p.exists())
-        self.path.rename(aside)
+        # the platform's record first: a kill between the two leaves no journal set aside without it
         write_text_whole(self._platform_path(aside), json.dumps(written_on, sort_keys=True) + "\n")
+        self.path.rename(aside)
         return aside
 
     def _read(self) -> None:
-        for line in self.path.read_text().splitlines():
-            try:
-                entry = json.loads(line)
-            except ValueError:
-                continue  # the last line of a killed run
+        for entry in json_lines(self.path):  # an episode whose line is damaged runs again
             parts = json.loads(entry["key"])
             env_kwargs = parts[5]  # Journal.key's sixth part
             self.records[self._canonical_key(parts)] = EpisodeRecord.from_dict(entry["record"], env_kwargs)
@@ -341,8 +338,7 @@ class Journal:
 
     def add(self, task: EpisodeTask, record: EpisodeRecord) -> None:
         self.records[self.key(task)] = record
-        with open(self.path, "a") as f:
-            f.write(json.dumps(dict(key=self.key(task), record=json_safe(record.to_dict()))) + "\n")
+        append_line(self.path, json.dumps(dict(key=self.key(task), record=json_safe(record.to_dict()))))
 
 
 def _run_parallel(

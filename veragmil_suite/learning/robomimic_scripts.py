@@ -1,6 +1,7 @@
 """robomimic 0.3.0's own scripts run by our entry points (veragmil_suite.scripts.robomimic_entry), with the gaps
 of robomimic_compat's list that live in the scripts bridged: train.py's experiment folders and exit status, its
-prompts, dataset_states_to_obs.py's dataset attributes and the observations it cannot extract.
+prompts, dataset_states_to_obs.py's dataset attributes and the observations it cannot extract, and the scripts'
+output files written whole (a killed or failed run leaves the file that was there).
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from veragmil_suite.data.writer import write_lock
 from veragmil_suite.learning import training_resume
 from veragmil_suite.learning.robomimic_obs import TORQUE_DEPENDENT_OBSERVATIONS
 from veragmil_suite.utils.canonical import canonical
+from veragmil_suite.utils.whole_files import written_whole
 
 if TYPE_CHECKING:
     import argparse
@@ -38,10 +40,8 @@ if TYPE_CHECKING:
 def prepare_states_to_obs_script(module: types.ModuleType) -> None:
     """
     Patches the namespace of robomimic.scripts.dataset_states_to_obs (imported, not yet run) for one run: its
-    output is written, under its write lock, as a working copy beside it, renamed onto it once complete (a failed
-    run leaves the output as it was; a killed one's copy is reported by veragmil-dataset-info and removed by --clean
-    or the next write), and each demo keeps the input's attributes (see _carry_attributes) and its recorded
-    torque-dependent observations (see _carry_recorded_observations).
+    output is written whole (dataset_written_whole), and each demo keeps the input's attributes (see
+    _carry_attributes) and its recorded torque-dependent observations (see _carry_recorded_observations).
     """
     robomimic_states_to_obs = getattr(module.dataset_states_to_obs, "__wrapped__", module.dataset_states_to_obs)
 
@@ -49,29 +49,64 @@ def prepare_states_to_obs_script(module: types.ModuleType) -> None:
     def dataset_states_to_obs(args: argparse.Namespace) -> None:
         folder = os.path.dirname(args.dataset)
         output = os.path.join(folder, args.output_name)
-        with write_lock(output):
-            safe_hdf5.remove_working_copies(output)  # what killed runs left
-            _states_to_obs_whole(robomimic_states_to_obs, args, folder, output)
+        with dataset_written_whole(output) as partial:
+            args.output_name = os.path.relpath(partial, folder or ".")
+            try:
+                robomimic_states_to_obs(args)
+            finally:
+                args.output_name = os.path.relpath(output, folder or ".")
+            _carry_attributes(args.dataset, partial)
+            carried = _carry_recorded_observations(args.dataset, partial)
+            if carried:
+                print(f"kept the recorded {', '.join(carried)}: they read a step's torques, not its state")
 
     module.dataset_states_to_obs = dataset_states_to_obs
 
 
-def _states_to_obs_whole(robomimic_states_to_obs, args, folder: str, output: str) -> None:
-    """robomimic's dataset_states_to_obs writing a working copy of ``output``, renamed onto it once complete."""
-    partial = str(safe_hdf5.working_copy_path(output))
-    args.output_name = os.path.relpath(partial, folder or ".")
-    try:
-        robomimic_states_to_obs(args)
-        _carry_attributes(args.dataset, partial)
-        carried = _carry_recorded_observations(args.dataset, partial)
-        if carried:
-            print(f"kept the recorded {', '.join(carried)}: they read a step's torques, not its state")
-        os.replace(partial, os.path.realpath(output))  # a link's file, as safe_hdf5 replaces
-        print(f"renamed {os.path.basename(partial)} to {output} (written under that name until complete)")
-    finally:
-        args.output_name = os.path.relpath(output, folder or ".")
-        if os.path.exists(partial):
-            os.remove(partial)
+@contextlib.contextmanager
+def dataset_written_whole(output: str) -> Iterator[str]:
+    """
+    Yields the path of a working copy of the dataset ``output`` for a robomimic script to write, renamed onto
+    ``output`` when the block ends, under the file's write lock: a failed run leaves ``output`` as it was; a killed
+    one's copy is reported by veragmil-dataset-info and removed by --clean or the next write.
+    """
+    with write_lock(output):
+        safe_hdf5.remove_working_copies(output)  # what killed runs left
+        partial = str(safe_hdf5.working_copy_path(output))
+        try:
+            yield partial
+            if os.path.exists(partial):  # a run that wrote nothing leaves ``output`` as it was
+                os.replace(partial, os.path.realpath(output))  # a link's file, as safe_hdf5 replaces
+                print(f"renamed {os.path.basename(partial)} to {output} (written under that name until complete)")
+        finally:
+            if os.path.exists(partial):
+                os.remove(partial)
+
+
+def prepare_outputs_whole(module: types.ModuleType, function: str, datasets: tuple[str, ...] = ()) -> None:
+    """
+    Patches the script's ``function`` (run on its parsed arguments) so that the files its ``video_path`` and its
+    ``datasets`` options name are written under temporary names beside them and renamed onto them when it returns:
+    robomimic opens them in place, and a kill or an error part-way would leave half a file, or an emptied one where
+    --force let it replace a file.
+    """
+    robomimic_function = getattr(getattr(module, function), "__wrapped__", getattr(module, function))
+
+    @functools.wraps(robomimic_function)
+    def written_whole_run(args: argparse.Namespace) -> Any:
+        named = {dest: getattr(args, dest, None) for dest in ("video_path", *datasets)}
+        with contextlib.ExitStack() as outputs:
+            for dest, path in named.items():
+                if path is not None:
+                    partial = dataset_written_whole(path) if dest in datasets else written_whole(path, True)
+                    setattr(args, dest, str(outputs.enter_context(partial)))
+            try:
+                return robomimic_function(args)
+            finally:
+                for dest, path in named.items():
+                    setattr(args, dest, path)
+
+    setattr(module, function, written_whole_run)
 
 
 def _carry_attributes(source: str, output: str) -> None:
@@ -237,7 +272,12 @@ def prepare_train_script(module: types.ModuleType, resume: bool = False) -> Trai
                 print(f"nothing to resume under {config.train.output_dir}/{config.experiment.name}: a new run")
             return training_resume.ResumingTrainUtils(train_utils, every_s=every_s)
         held = training_resume.held_config(run_dir)
-        if held is None or training_resume.comparable_config(held) != training_resume.comparable_config(config):
+        if held is None:
+            raise training_resume.ResumeRefused(
+                f"{run_dir} holds no readable record of the config it was trained with; train without --resume "
+                "(a new run)"
+            )
+        if training_resume.comparable_config(held) != training_resume.comparable_config(config):
             raise training_resume.ResumeRefused(
                 f"{run_dir} was trained with another config; train this one without --resume (a new run)"
             )

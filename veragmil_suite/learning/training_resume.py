@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from veragmil_suite.utils.whole_files import write_whole
+from veragmil_suite.utils.whole_files import write_text_whole, write_whole
 
 if TYPE_CHECKING:
     from robomimic.algo.algo import Algo
@@ -28,6 +28,8 @@ if TYPE_CHECKING:
     from torch.utils.data import DataLoader
 
 RESUME_FILE = "resume.pth"
+# the run's config as it started, written whole: robomimic's own config.json is rewritten in place at every start
+HELD_CONFIG_FILE = "config.held.json"
 SECONDS_FILE = "training_seconds.json"  # a finished run's training time, over all its pieces
 RESUME_FORMAT = 1
 # seconds of training between two saves of the resume state; $VERAGMIL_RESUME_EVERY_S overrides (0: every epoch)
@@ -128,9 +130,14 @@ def resumable_run(output_dir: str | Path, name: str) -> Path | None:
 
 
 def held_config(run_dir: str | Path) -> dict | None:
-    """The config a run was started with (robomimic writes it beside the run's logs)."""
-    path = Path(run_dir) / "config.json"
-    return json.loads(path.read_text()) if path.exists() else None
+    """The config a run was started with (ours, else robomimic's config.json beside the run's logs); None when
+    neither is there whole."""
+    for name in (HELD_CONFIG_FILE, "config.json"):
+        try:
+            return json.loads((Path(run_dir) / name).read_text())
+        except (OSError, ValueError):
+            continue
+    return None
 
 
 PATH_KEYS = ("data", "output_dir")  # the train section's paths: a folder named relative or absolute is one folder
@@ -176,6 +183,7 @@ class ResumingTrainUtils:
         """The run's folders (robomimic_scripts.experiment_dirs): ``run_dir``'s when resuming, else a new run's."""
         dirs = self._train_utils.get_exp_dir(config, auto_remove_exp_dir, run_dir=self.run_dir)
         self.run_dir = Path(dirs[0]).parent
+        write_text_whole(self.run_dir / HELD_CONFIG_FILE, json.dumps(config, indent=4))
         return dirs
 
     def run_epoch(
@@ -245,7 +253,7 @@ class ResumingTrainUtils:
         """The run ended: its training time is written and its resume state is no longer needed."""
         if self.run_dir is not None:
             text = json.dumps({"seconds": round(self.seconds(), 1)}) + "\n"
-            write_whole(self.run_dir / SECONDS_FILE, lambda partial: partial.write_text(text))
+            write_text_whole(self.run_dir / SECONDS_FILE, text)
             (self.run_dir / RESUME_FILE).unlink(missing_ok=True)
 
 

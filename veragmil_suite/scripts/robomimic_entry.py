@@ -274,11 +274,19 @@ train_main = _command(
     SCRIPTS["train"], prepare=lambda module, args: robomimic_scripts.prepare_train_script(module, resume=args.resume)
 )
 train_main.__doc__ = "veragmil-train: robomimic's train.py (--config, --algo, --name, --dataset, --debug, --resume)."
-run_agent_main = _command(SCRIPTS["run-agent"])
+run_agent_main = _command(
+    SCRIPTS["run-agent"],
+    prepare=lambda module, args: robomimic_scripts.prepare_outputs_whole(
+        module, "run_trained_agent", ("dataset_path",)
+    ),
+)
 run_agent_main.__doc__ = "veragmil-run-agent: robomimic's run_trained_agent.py (--agent, --n_rollouts, ...)."
 get_dataset_info_main = _command(SCRIPTS["dataset-info"])
 get_dataset_info_main.__doc__ = "veragmil-robomimic-dataset-info: robomimic's get_dataset_info.py (--dataset, ...)."
-playback_dataset_main = _command(SCRIPTS["playback"])
+playback_dataset_main = _command(
+    SCRIPTS["playback"],
+    prepare=lambda module, args: robomimic_scripts.prepare_outputs_whole(module, "playback_dataset"),
+)
 playback_dataset_main.__doc__ = "veragmil-robomimic-playback: robomimic's playback_dataset.py (--dataset, ...)."
 dataset_states_to_obs_main = _command(
     SCRIPTS["states-to-obs"], prepare=lambda module, args: robomimic_scripts.prepare_states_to_obs_script(module)

@@ -2,12 +2,15 @@
 
 A program's outputs (tables, records, settings a study resumes from, videos) are written under a temporary name
 beside their place and renamed onto it once complete: a kill, a full disk or an error part-way leaves the file that
-was there, never half of the new one. HDF5 datasets have their own writer (veragmil_suite.data.safe_hdf5).
+was there, never half of the new one. HDF5 datasets have their own writer (veragmil_suite.data.safe_hdf5). Records
+that grow a line at a time (an evaluation's journal) are appended whole lines: a line a kill cut short is left out
+when read and cut off before the next line is appended.
 """
 
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import shutil
 from collections.abc import Callable, Iterator
@@ -81,3 +84,29 @@ def recover_folder(folder: str | Path) -> None:
             shutil.rmtree(aside)
         else:
             aside.rename(folder)
+
+
+def json_lines(path: str | Path) -> list:
+    """The records of a file appended a JSON line at a time (append_line): a last line a kill cut short (no newline
+    at its end) is left out, and so is a line that does not parse."""
+    text = Path(path).read_text()
+    records = []
+    for line in text[: text.rfind("\n") + 1].splitlines():
+        try:
+            records.append(json.loads(line))
+        except ValueError:
+            continue
+    return records
+
+
+def append_line(path: str | Path, line: str) -> None:
+    """Appends ``line`` and its newline to ``path``. A last line a kill cut short is cut off first, so the new one
+    starts on a line of its own instead of joining it."""
+    with open(path, "a+b") as f:
+        end = f.seek(0, os.SEEK_END)
+        if end:
+            f.seek(end - 1)
+            if f.read(1) != b"\n":
+                f.seek(0)
+                f.truncate(f.read().rfind(b"\n") + 1)
+        f.write(line.encode() + b"\n")

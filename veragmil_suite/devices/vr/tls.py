@@ -90,7 +90,7 @@ def ensure_certificate(names: list[str], cert_dir: str | Path | None = None) -> 
     wanted = {str(ipaddress.ip_address(n)) if _is_ip(n) else n for n in names}
     if cert.exists() and key.exists():
         have = _cert_names(cert)
-        if have is not None and wanted <= have:
+        if have is not None and wanted <= have and _pair_loads(cert, key):
             return cert, key
     with tempfile.TemporaryDirectory(dir=cert_dir) as tmp:
         tmp_cert, tmp_key = Path(tmp) / "cert.pem", Path(tmp) / "key.pem"
@@ -109,6 +109,16 @@ def ensure_certificate(names: list[str], cert_dir: str | Path | None = None) -> 
         os.replace(tmp_key, key)
         os.replace(tmp_cert, cert)
     return cert, key
+
+
+def _pair_loads(cert: Path, key: Path) -> bool:
+    """Whether ``key`` is the private key of ``cert`` (the two are replaced one after the other: a kill between
+    leaves a new key beside the old certificate)."""
+    try:
+        ssl.create_default_context(ssl.Purpose.CLIENT_AUTH).load_cert_chain(cert, key)
+    except (ssl.SSLError, OSError):
+        return False
+    return True
 
 
 def _is_ip(name: str) -> bool:
