@@ -19,8 +19,9 @@ LIGHT = dict(robots="XArm7", food="pasta", n_grains=12, has_offscreen_renderer=F
 BAD_KWARGS = [
     ("horizon", 0, "horizon must be a positive integer, got 0"),
     ("horizon", "ten", "horizon must be a positive integer, got 'ten'"),
-    ("camera_heights", 0, "camera_heights must be a positive integer (or one per camera), got 0"),
-    ("camera_widths", 2.5, "camera_widths must be a positive integer"),
+    ("camera_heights", 0, "camera_heights must be a size in pixels in [1, 4096] (or one per camera), got 0"),
+    ("camera_widths", 2.5, "camera_widths must be a size in pixels"),
+    ("camera_heights", [84, 100000], "camera_heights must be a size in pixels in [1, 4096] (or one per camera)"),
     ("table_full_size", (0.8,), "table_full_size must be 3 finite positive numbers"),
     ("reward_scale", "x", "reward_scale must be a finite number, got 'x'"),
     ("success_pos_tolerance", -1, "success_pos_tolerance must be a finite number in (0, inf), got -1"),

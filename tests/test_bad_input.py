@@ -39,7 +39,7 @@ CASES = [
     ("veragmil-collect", ["--device", "scripted", "--food", "pasta", "--n-grains", "100000", "--output",
      "{tmp}/a.hdf5"], "n_grains 100000 is more than a bowl of pasta settles in reasonable time: at most 160"),
     ("veragmil-collect", [*SCRIPTED, "--camera-size", "0", "--output", "{tmp}/a.hdf5"],
-     "argument --camera-size: must be a positive integer, got 0"),
+     "argument --camera-size: must be a size in pixels in [1, 4096], got 0"),
     ("veragmil-collect", [*SCRIPTED, "--output", "{tmp}"], "is a directory, not a dataset file"),
     ("veragmil-collect", [*SCRIPTED, "--output", "{tmp}/no/a.hdf5"], "the folder {tmp}/no does not exist"),
     ("veragmil-collect", ["--device", "scripted", "--food", "caviar", "--output", "{tmp}/a.hdf5"],
@@ -58,6 +58,25 @@ CASES = [
      "give --output FILE (appended to when it exists) or --directory DIR (robosuite's), one"),
     ("veragmil-collect", [*SCRIPTED, "--arm", "left", "--output", "{tmp}/a.hdf5"],
      "--arm left: the spoon is on the right arm"),
+    ("veragmil-collect", [*SCRIPTED, "--max-fr", "1e-6", "--output", "{tmp}/a.hdf5"],
+     "argument --max-fr: must be at least 1 control step per second, got '1e-6'"),
+    ("veragmil-collect", [*SCRIPTED, "--keep", "ask", "--output", "{tmp}/a.hdf5"],
+     "--keep ask asks the person at the device; --device scripted keeps all or success"),
+    ("veragmil-collect", [*SCRIPTED, "--episodes", "5", "--max-attempts", "2", "--output", "{tmp}/a.hdf5"],
+     "--max-attempts 2 is fewer than --episodes 5"),
+    ("veragmil-collect", [*SCRIPTED, "--seed", "4294967295", "--output", "{tmp}/a.hdf5"],
+     "seed 4294967295: its 5 attempt seeds run to 4294967299, past numpy's largest seed 4294967295; give a seed of "
+     "at most 4294967291"),
+    ("veragmil-collect", [*SCRIPTED, "--depth", "--camera-names", "--output", "{tmp}/a.hdf5"],
+     "--depth records <camera>_depth beside each camera's image: give --camera-names"),
+    ("veragmil-collect", [*SCRIPTED, "--camera-height", "100000", "--output", "{tmp}/a.hdf5"],
+     "argument --camera-height: must be a size in pixels in [1, 4096], got 100000"),
+    ("veragmil-merge", [SAMPLE, SAMPLE, "--output", "{tmp}/m.hdf5"], f"INPUTS {SAMPLE} is given twice"),
+    ("veragmil-render-obs", [SAMPLE, "--demos", "demo_0", "demo_0", "--output", "{tmp}/r.hdf5"],
+     "argument --demos: demo_0 given twice"),
+    ("veragmil-robomimic-playback", ["--dataset", SAMPLE, "--use-obs", "--video_path", "{tmp}/v.mp4",
+     "--render_image_names", "agentview_image"], "with --use-obs, an image observation the dataset stores; "
+     "accepted: overhead_image"),
     ("veragmil-dataset-info", ["{missing}"], "no such file"),
     ("veragmil-dataset-info", ["{tmp}"], "is a directory"),
     ("veragmil-merge", ["{missing}", "--output", "{tmp}/m.hdf5"], "no such file"),
@@ -69,12 +88,12 @@ CASES = [
     ("veragmil-split", ["{missing}"], "no such file"),
     ("veragmil-split", [SAMPLE, "--ratio", "1.5"], "argument --valid-ratio/--ratio: must be a finite number in [0, 1)"),
     ("veragmil-replay", ["{missing}", "--use-actions"], "no such file"),
-    ("veragmil-replay", [SAMPLE, "--size", "0", "--output", "{tmp}/v.mp4"], "argument --size: must be a positive"),
+    ("veragmil-replay", [SAMPLE, "--size", "0", "--output", "{tmp}/v.mp4"], "argument --size: must be a size in"),
     ("veragmil-replay", [SAMPLE, "--output", "{tmp}/no/v.mp4"], "the folder {tmp}/no does not exist"),
     ("veragmil-replay", [SAMPLE, "--use-actions", "--fps", "0"], "argument --fps: must be a finite number in (0, inf)"),
     ("veragmil-replay", [SAMPLE], "give --output (a video) and/or --use-actions (a replay check)"),
     ("veragmil-render-obs", ["{missing}", "--output", "{tmp}/r.hdf5"], "no such file"),
-    ("veragmil-render-obs", [SAMPLE, "--size", "0", "--output", "{tmp}/r.hdf5"], "argument --size: must be a positive"),
+    ("veragmil-render-obs", [SAMPLE, "--size", "0", "--output", "{tmp}/r.hdf5"], "argument --size: must be a size"),
     ("veragmil-render-obs", [SAMPLE, "--output", "{tmp}/no/r.hdf5"], "the folder {tmp}/no does not exist"),
     ("veragmil-render-obs", [SAMPLE, "--output", "{tmp}/r.hdf5", "--cameras", "nocam"],
      "argument --camera-names/--cameras: unknown camera 'nocam'; accepted: "),
@@ -120,6 +139,10 @@ CASES = [
     ("veragmil-robomimic-states-to-obs", ["--dataset", "{missing}", "--output_name", "x.hdf5"], "no such file"),
     ("veragmil-robomimic-states-to-obs", ["--dataset", "{tmp}/fake.pth", "--output_name", "x.hdf5"],
      "(no HDF5 signature)"),
+    ("veragmil-evaluate", [*EVAL, "--seed", "4294967295", "--episodes", "2"],
+     "seed 4294967295: its 2 episode seeds run to 4294967296, past numpy's largest seed"),
+    ("veragmil-evaluate", [*EVAL, "--videos", "5", "--episodes", "2"],
+     "videos 5 is more than the 2 episodes per agent and food"),
     ("veragmil-evaluate", [*EVAL, "--foods", "caviar"], "caviar"),
     ("veragmil-evaluate", [*EVAL, "--env-kwargs", '{{"bogus": 1}}'],
      "unknown ScoopGranular argument(s) bogus; accepted: robots, "),
@@ -136,10 +159,18 @@ CASES = [
     ("veragmil-evaluate", ["--agent", "{tmp}/fake.pth", "--output-dir", "{tmp}/e"], "not a readable robomimic check"),
     ("veragmil-evaluate", ["--agent", "{tmp}/dict.pth", "--output-dir", "{tmp}/e"], "it lacks algo_name"),
     ("veragmil-evaluate", ["--agent", "expert", "--output-dir", "{tmp}/bad.json"], "is a file, not a folder"),
+    ("veragmil-study", ["--output-dir", "{tmp}/s", "--seed", "4294900000"],
+     "its 100003 recording and evaluation seeds run to 4295000002, past numpy's largest seed"),
     ("veragmil-study", ["--output-dir", "{tmp}/s", "--episodes", "0"], "argument --episodes: must be a positive"),
     ("veragmil-study", ["--output-dir", "{tmp}/s", "--demos-per-food", "0"], "argument --demos-per-food: must be"),
     ("veragmil-study", ["--output-dir", "{tmp}/s", "--algo-epochs", "rnn=4"],
      f"argument --algo-epochs: 'rnn=4': unknown algorithm 'rnn'; accepted: {', '.join(sorted(ALGORITHMS))}"),
+    ("veragmil-study", ["--output-dir", "{tmp}/s", "--algos", "bc", "--algo-epochs", "bc_rnn=40"],
+     "algo_epochs names bc_rnn, which algos ['bc'] does not train"),
+    ("veragmil-study", ["--output-dir", "{tmp}/s", "--algo-epochs", "bc=3", "--algo-epochs", "bc=4"],
+     "algo_epochs gives bc two budgets: give one"),
+    ("veragmil-study", ["--output-dir", "{tmp}/s", "--train-foods", "rice", "rice"],
+     "argument --train-foods: rice given twice"),
     ("veragmil-study", ["--output-dir", "{tmp}/s", "--algo-epochs", "bcq=0"],
      "argument --algo-epochs: 'bcq=0': must be a positive integer, got 0"),
     ("veragmil-quickstart", ["--episodes", "0"], "argument --episodes: must be a positive"),
@@ -343,3 +374,11 @@ def test_an_output_that_exists_or_is_an_input_is_refused_and_left_as_it_was(
         program, argv, message.format(d=outputs_folder), outputs_folder, set(outputs_folder.rglob("*")), capsys
     )
     assert _contents(outputs_folder) == before
+
+
+def test_a_live_window_without_a_display_is_refused_before_anything_is_recorded(tmp_path, capsys, monkeypatch):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    argv = [*SCRIPTED, "--render", "on", "--output", "{tmp}/a.hdf5"]
+    _run_and_check("veragmil-collect", [a.format(tmp=tmp_path) for a in argv], "--render on needs a display",
+                   tmp_path, set(tmp_path.rglob("*")), capsys)  # fmt: skip

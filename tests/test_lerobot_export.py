@@ -123,6 +123,30 @@ def test_an_existing_output_is_kept_without_force(tmp_path, capsys):
     assert "exists (use --force" in capsys.readouterr().err and (out / "mine.txt").read_text() == "kept"
 
 
+def test_force_replaces_only_an_earlier_export_never_a_folder_of_the_users_or_the_inputs(tmp_path, capsys, monkeypatch):
+    """--force replaces the output folder whole: it must be an earlier export, not a folder of other files, not the
+    folder holding the input, not ``.`` (one line each, exit 2, the folder as it was)."""
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("kept")
+    assert main([str(SAMPLE), "--output-dir", str(mine), "--force"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "is not a LeRobot export (no meta/info.json)" in err[0]
+    assert (mine / "notes.txt").read_text() == "kept"
+    demos = tmp_path / "demos"
+    demos.mkdir()
+    dataset = demos / "scoop.hdf5"
+    dataset.write_bytes(SAMPLE.read_bytes())
+    for output in (demos, tmp_path):
+        assert main([str(dataset), "--output-dir", str(output), "--force"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and f"holds the input {dataset}" in err[0]
+    monkeypatch.chdir(demos)
+    assert main(["scoop.hdf5", "--output-dir", ".", "--force"]) == 2
+    assert "holds the input scoop.hdf5" in capsys.readouterr().err
+    assert dataset.read_bytes() == SAMPLE.read_bytes() and sorted(p.name for p in demos.iterdir()) == ["scoop.hdf5"]
+
+
 def test_every_metric_a_demo_stores_has_a_lerobot_type():
     from veragmil_suite.data.lerobot_export import METRIC_DTYPES
     from veragmil_suite.data.schema import METRIC_KEYS

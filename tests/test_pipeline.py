@@ -99,7 +99,8 @@ def test_every_setting_is_an_option_of_the_study_built_from_the_settings_alone()
         if f.name != "output_dir":
             assert getattr(settings, f.name) == getattr(defaults, f.name), f.name
     given = settings_from_args(parser.parse_args([
-        "--output-dir", "runs/x", "--robot", "XArm7", "--algo-epochs", "bc_rnn=40", "--algo-epochs", "bc=3",
+        "--output-dir", "runs/x", "--robot", "XArm7", "--algos", "bc", "bc_rnn", "--algo-epochs", "bc_rnn=40",
+        "--algo-epochs", "bc=3",
         "--agent", "careful=expert:careful", "--n-grains", "50", "--train-seeds", "1", "3", "--ray",
     ]))  # fmt: skip
     assert given.algo_epochs == {"bc_rnn": 40, "bc": 3} and given.agents == {"careful": "expert:careful"}

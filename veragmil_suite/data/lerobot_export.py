@@ -239,19 +239,29 @@ def export_lerobot(
 
     Raises:
         DatasetError: [not a ScoopGranular dataset, no demos to export, a demo whose keys or shapes differ from
-            the first's, a control rate that is no whole number of Hz, ``output`` exists and not ``force``]
+            the first's, a control rate that is no whole number of Hz, ``output`` exists and not ``force``, or is
+            no earlier export, or holds ``dataset``, or is the file system's root]
         ValueError: [an unknown ``vcodec``]
         ExtraNotInstalled: [lerobot-dataset is not installed]
     """
     if vcodec not in VIDEO_CODECS:
         raise ValueError(f"unknown video codec {vcodec!r}; accepted: {', '.join(VIDEO_CODECS)}")
-    output = Path(output)
+    named, output = output, Path(os.path.abspath(output))  # ``.`` and ``a/..`` by the folder they name
+    if not output.name:
+        raise DatasetError(f"{named}: the export needs a folder of its own, not the file system's root")
     # written beside ``output`` (hidden) and put in its place once complete: a failed export leaves no half dataset;
     # what a killed export left (this name, or the export it replaced, set aside) is seen to first
     partial = output.with_name(f".{output.name}.partial")
     recover_folder(output)
+    if Path(dataset).resolve().is_relative_to(output.resolve()):
+        raise DatasetError(f"{named} holds the input {dataset}: export to another folder")
     if output.exists() and not force:
-        raise DatasetError(f"{output} exists (use --force to replace it)")
+        raise DatasetError(f"{named} exists (use --force to replace it)")
+    if output.exists() and not (output / "meta" / "info.json").is_file():
+        raise DatasetError(
+            f"{named} is not a LeRobot export (no meta/info.json): --force replaces only an earlier export; "
+            "export to a new folder"
+        )
     with open_dataset(dataset) as f:
         names = _select(f, filter_key)
         if not names:

@@ -85,8 +85,8 @@ def _range(name: str, value: Any) -> None:
 
 def _per_camera(name: str, value: Any) -> None:
     for item in value if isinstance(value, (list, tuple)) else [value]:
-        if not (is_whole(item) and item > 0):
-            raise _refuse(name, "a positive integer (or one per camera)", value)
+        if not (is_whole(item) and 0 < item <= MAX_IMAGE_SIDE_PX):
+            raise _refuse(name, f"a size in pixels in [1, {MAX_IMAGE_SIDE_PX}] (or one per camera)", value)
 
 
 def _names(name: str, value: Any) -> None:
@@ -106,6 +106,9 @@ def _controller(name: str, value: Any) -> None:
         raise _refuse(name, "None (the task's OSC_POSE) or a robosuite controller config dict", value)
 
 
+# the largest image side a camera renders: robosuite grows its offscreen buffer to the image asked for (4 bytes a
+# pixel and more for depth), so 100,000 pixels a side would ask for tens of gigabytes part-way through a run
+MAX_IMAGE_SIDE_PX = 4096
 # the slowest control rate accepted: a control period longer than a second is neither teleoperation nor a policy,
 # and robosuite runs period / physics step substeps per control step (control_freq=1e-9 would never return)
 MIN_CONTROL_FREQ_HZ = 1.0

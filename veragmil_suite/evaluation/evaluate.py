@@ -43,6 +43,7 @@ from veragmil_suite.models.humanoid import check_robot
 from veragmil_suite.utils.canonical import canonical
 from veragmil_suite.utils.distributed import Resources, WorkerLost, ray_session, run_pieces
 from veragmil_suite.utils.host import outcome_platform, versions
+from veragmil_suite.utils.numbers import seed_span_problem
 from veragmil_suite.utils.whole_files import append_line, json_lines, write_text_whole
 
 
@@ -98,8 +99,13 @@ def evaluate(
         raise ValueError(f"episodes and processes must be positive integers, got {episodes} and {processes}")
     if horizon is not None and int(horizon) < 1:
         raise ValueError(f"horizon must be a positive integer, got {horizon}")
+    seeds_problem = seed_span_problem(seed, episodes)
+    if seeds_problem:
+        raise ValueError(seeds_problem)
     if videos and output_dir is None:
         raise ValueError("videos need an output_dir to be written to")
+    if int(videos) > int(episodes):
+        raise ValueError(f"videos {videos} is more than the {episodes} episodes per agent and food: give at most that")
     if policy_device not in POLICY_DEVICES:
         raise ValueError(f"policy device {policy_device!r}; accepted: {', '.join(POLICY_DEVICES)}")
     metas = {name: env_metadata(spec.target) for name, spec in specs.items() if spec.kind == "checkpoint"}

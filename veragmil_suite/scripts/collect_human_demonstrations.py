@@ -60,6 +60,7 @@ from veragmil_suite.utils import cli
 from veragmil_suite.utils.cli.handler import UsageError, command
 from veragmil_suite.utils.cli.parser import Parser
 from veragmil_suite.utils.distributed import add_ray_argument, check_ray_argument
+from veragmil_suite.utils.numbers import seed_span_problem
 from veragmil_suite.utils.rendering import use_headless_rendering
 
 # robosuite's devices (its collect_human_demonstrations.py), then ours
@@ -129,7 +130,7 @@ def build_parser() -> Parser:
     )
     add(
         "--max-fr",
-        type=cli.positive,
+        type=cli.frame_rate,
         default=None,
         help="at most this many control steps per second (robosuite's frame-rate cap; default: real time for "
         "people, as fast as it runs for the scripted expert)",
@@ -242,6 +243,16 @@ def check_args(args: argparse.Namespace) -> None:
         raise UsageError("--device mjgui drags the spoon's target in MuJoCo's viewer: it needs --renderer mjviewer")
     if args.device in ("keyboard", "mjgui") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
         raise UsageError(f"--device {args.device} needs a display (no DISPLAY is set)")
+    if args.render == "on" and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise UsageError("--render on needs a display (no DISPLAY is set): use --render off")
+    if args.depth and not args.camera_names:
+        raise UsageError("--depth records <camera>_depth beside each camera's image: give --camera-names")
+    if args.keep == "ask" and args.device == "scripted":
+        raise UsageError("--keep ask asks the person at the device; --device scripted keeps all or success")
+    if args.max_attempts is not None and args.max_attempts < args.episodes:
+        raise UsageError(
+            f"--max-attempts {args.max_attempts} is fewer than --episodes {args.episodes}: every episode is an attempt"
+        )
     if args.camera and len(args.camera) > 1 and args.renderer != "mujoco":
         raise UsageError("several --camera views need --renderer mujoco (robosuite's mjviewer shows one)")
     if args.device == "vr":
@@ -330,6 +341,10 @@ def main(args: argparse.Namespace) -> int:
         )
     except ValueError as e:
         raise UsageError(str(e)) from None
+    seeds_problem = seed_span_problem(args.seed, max_attempts or args.episodes, "attempt")
+    if seeds_problem:
+        writer.close()
+        raise UsageError(seeds_problem)
 
     # the environment is built here in every case: a bad setting is refused before anything is recorded (nothing is
     # written before the first episode), and with workers it settles the piles for them (parallel_attempts)

@@ -93,7 +93,8 @@ PROGRAMS = {
             "--n": cli.count,
             "--video_path": cli.output_video,
             "--video_skip": cli.count,
-            "--render_image_names": _CAMERAS,
+            # cameras, or with --use-obs the dataset's image observations (check_args tells which)
+            "--render_image_names": cli.ListOf(cli.text),
         },
     ),
     "robomimic.scripts.dataset_states_to_obs": Script(
@@ -183,12 +184,33 @@ def check_args(module_name: str, args: argparse.Namespace) -> None:
             raise UsageError("--use-obs plays the stored observations back into a video: give --video_path")
         if args.use_actions:
             raise UsageError("--use-obs plays stored observations, --use-actions replays actions: give one")
+        args.render_image_names = _stored_images(args.dataset, args.render_image_names)
+    elif module_name == "robomimic.scripts.playback_dataset":
+        for name in args.render_image_names or []:
+            cli.check_option("--render-image-names", name, cli.camera)
     if module_name == "robomimic.scripts.dataset_states_to_obs":
         cli.check_option("--output_name", _output_path(args, "output_name"), cli.output_dataset)
     if getattr(args, "filter_key", None) is not None:
         with h5py.File(args.dataset, "r") as f:
             filter_key_demos(f, args.filter_key)  # DatasetError names the keys the file has
     check_outputs(module_name, args)
+
+
+def _stored_images(dataset: str, names: list[str] | None) -> list[str]:
+    """The image observations --use-obs plays: ``names``, each one the dataset stores, or its first image."""
+    with h5py.File(dataset, "r") as f:
+        demos = list(f["data"])
+        obs = f["data"][demos[0]].get("obs", {}) if demos else {}
+        stored = [key for key in obs if key.endswith("_image")]
+    if not stored:
+        raise UsageError(f"{dataset} stores no image observations to play: render them with veragmil-render-obs")
+    for name in names or []:
+        if name not in stored:
+            raise UsageError(
+                f"--render-image-names {name}: with --use-obs, an image observation the dataset stores; accepted: "
+                f"{', '.join(stored)}"
+            )
+    return names or stored[:1]
 
 
 def training_config(args: argparse.Namespace) -> Any:

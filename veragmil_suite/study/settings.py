@@ -22,7 +22,7 @@ from veragmil_suite.learning.observation_sets import (
 from veragmil_suite.models.foods import DEFAULT_PHYSICS, TRAINING_FOODS, UNSEEN_FOODS, check_physics, get_food
 from veragmil_suite.models.humanoid import check_robot
 from veragmil_suite.utils import cli
-from veragmil_suite.utils.numbers import is_whole
+from veragmil_suite.utils.numbers import is_whole, seed_span_problem
 
 # Seeds of recorded episodes and of evaluation episodes never meet: evaluation bowls are not training bowls.
 EVAL_SEED_OFFSET = 100_000
@@ -55,6 +55,15 @@ class Option:
     metavar: str | None = None
     parse: Callable[[Any, Any], Any] | None = None
     show: Callable[[Any], str] = str
+
+
+def _algo_epochs(pairs: list[tuple[str, int]]) -> dict[str, int]:
+    """--algo-epochs as a dict; an algorithm given twice is refused (which budget was meant?)."""
+    algos = [algo for algo, _ in pairs]
+    twice = next((algo for i, algo in enumerate(algos) if algo in algos[:i]), None)
+    if twice is not None:
+        raise ValueError(f"algo_epochs gives {twice} two budgets: give one")
+    return dict(pairs)
 
 
 def setting(option: Option, default: Any = MISSING, factory: Callable[[], Any] | Any = MISSING) -> Any:
@@ -130,7 +139,7 @@ class PipelineSettings:
             cli.KeyValue(cli.algo, cli.count, "ALGO=EPOCHS"),
             action="append",
             metavar="ALGO=EPOCHS",
-            parse=lambda pairs, default: dict(pairs) if pairs else dict(default),
+            parse=lambda pairs, default: _algo_epochs(pairs) if pairs else dict(default),
         ),
         factory=dict,
     )
@@ -246,6 +255,10 @@ class PipelineSettings:
                 raise ValueError(f"{name} must be a positive integer, got {getattr(self, name)!r}")
         if not (is_whole(self.seed) and self.seed >= 0):
             raise ValueError(f"seed must be a non-negative integer, got {self.seed!r}")
+        # the last seed the run derives from its first: its last evaluation episode's
+        seeds_problem = seed_span_problem(self.seed, EVAL_SEED_OFFSET + self.episodes, "recording and evaluation")
+        if seeds_problem:
+            raise ValueError(seeds_problem)
         for food in dict.fromkeys([*self.train_foods, *self.eval_foods]):
             check_grain_count(self.n_grains, get_food(food), self.physics)
         if not self.demos_per_food or self.demos_per_food[0] < 1:
@@ -253,6 +266,9 @@ class PipelineSettings:
         unknown = sorted(set(self.algo_epochs) - set(ALGORITHMS))
         if unknown:
             raise ValueError(f"algo_epochs names unknown algorithm(s) {unknown}; accepted: {sorted(ALGORITHMS)}")
+        untrained = sorted(set(self.algo_epochs) - set(self.algos))
+        if untrained:
+            raise ValueError(f"algo_epochs names {', '.join(untrained)}, which algos {self.algos} does not train")
         for algo, epochs in self.algo_epochs.items():
             if int(epochs) < 1:
                 raise ValueError(f"algo_epochs of {algo} must be a positive integer, got {epochs!r}")

@@ -1,5 +1,5 @@
 """What an argument that takes a number accepts: a real, finite number or an integer, never a bool (True is an int
-to Python, and would be taken as 1)."""
+to Python, and would be taken as 1); and the seeds a run derives from its first."""
 
 from __future__ import annotations
 
@@ -7,6 +7,8 @@ import math
 from typing import Any
 
 import numpy as np
+
+SEED_MAX = 2**32 - 1  # numpy's largest seed
 
 
 def is_number(value: Any) -> bool:
@@ -21,3 +23,15 @@ def is_number(value: Any) -> bool:
 def is_whole(value: Any) -> bool:
     """An integer (not a bool), Python's or NumPy's."""
     return not isinstance(value, (bool, np.bool_)) and isinstance(value, (int, np.integer))
+
+
+def seed_span_problem(first: int, count: int, what: str = "episode") -> str | None:
+    """What is wrong with the ``count`` consecutive seeds from ``first`` that a run gives its ``what``s (the k-th
+    runs with seed ``first`` + k): None when all are numpy's."""
+    last = int(first) + int(count) - 1
+    if last <= SEED_MAX:
+        return None
+    return (
+        f"seed {first}: its {count} {what} seeds run to {last}, past numpy's largest seed {SEED_MAX}; "
+        f"give a seed of at most {SEED_MAX - int(count) + 1}"
+    )

@@ -31,6 +31,7 @@ from veragmil_suite.utils.cli.kinds import (
     control_freq,
     count,
     food,
+    image_side,
     physics,
     robot,
     seed,
@@ -166,15 +167,19 @@ def _check_env_value(name: str, value: Any, kwargs: dict, default: Any) -> None:
         return
     kinds: dict[str, Kind] = {"food": food, "robots": robot, "horizon": count, "seed": seed, "pile_variants": count}
     kinds["physics"] = physics
-    kinds.update(camera_heights=count, camera_widths=count)
+    kinds.update(camera_heights=image_side, camera_widths=image_side)
     if name in kinds:
-        items = value if name == "robots" and isinstance(value, list) else [value]
+        # robots and the image sizes take a list too (one robot; a size per camera)
+        listed = name in ("robots", "camera_heights", "camera_widths") and isinstance(value, list)
+        items = value if listed else [value]
+        if listed and not items:
+            raise kinds[name].refuse(value)
         for item in items:
             if isinstance(item, bool) or not isinstance(item, (str, int)):
                 raise kinds[name].refuse(item)
             kinds[name](str(item))
-        if name in ("horizon", "pile_variants", "camera_heights", "camera_widths") and not isinstance(value, int):
-            raise kinds[name].refuse(value)
+            if name in ("horizon", "pile_variants", "camera_heights", "camera_widths") and not isinstance(item, int):
+                raise kinds[name].refuse(item)
         return
     if name == "n_grains":
         if value is None:

@@ -12,7 +12,7 @@ from typing import Any
 from robosuite.models.robots import XArm7
 
 from veragmil_suite.devices.expert import PROFILES
-from veragmil_suite.environments.arguments import MIN_CONTROL_FREQ_HZ
+from veragmil_suite.environments.arguments import MAX_IMAGE_SIDE_PX, MIN_CONTROL_FREQ_HZ
 from veragmil_suite.learning import robomimic_compat
 from veragmil_suite.learning.algorithms import ALGORITHMS
 from veragmil_suite.learning.observation_sets import OBSERVATION_SETS
@@ -20,6 +20,7 @@ from veragmil_suite.models.arena import ScoopArena
 from veragmil_suite.models.foods import FOODS, PHYSICS, TRAINING_FOODS, UNSEEN_FOODS
 from veragmil_suite.models.humanoid import check_robot
 from veragmil_suite.models.scoop_task import PHYSICS_TIMESTEP_S, check_physics_timestep
+from veragmil_suite.utils.numbers import SEED_MAX
 
 
 class Kind:
@@ -193,7 +194,8 @@ class KeyValue(Kind):
 
 count = Integer(1)  # episodes, demos, steps, pixels, processes
 count_or_zero = Integer(0)  # a count that may be none
-seed = Integer(0, 2**32 - 1, accepted="a seed in [0, 4294967295]")  # numpy's range
+image_side = Integer(1, MAX_IMAGE_SIDE_PX, accepted=f"a size in pixels in [1, {MAX_IMAGE_SIDE_PX}]")
+seed = Integer(0, SEED_MAX, accepted=f"a seed in [0, {SEED_MAX}]")  # numpy's range
 fraction_below_one = Real(0.0, 1.0, open_high=True)  # a validation share: some demos must be left to train on
 positive = Real(0.0, open_low=True)  # a scale, a frame rate, a time constant
 non_negative = Real(0.0)  # a duration that may be zero
@@ -223,6 +225,8 @@ class ControlFreq(Kind):
 
 
 control_freq = ControlFreq()
+# a cap on control steps per second: below the slowest control rate a step would wait longer than a control period
+frame_rate = Real(MIN_CONTROL_FREQ_HZ, accepted=f"at least {MIN_CONTROL_FREQ_HZ:g} control step per second")
 
 
 def _foods() -> list[str]:

@@ -13,7 +13,8 @@ import sys
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from typing import TYPE_CHECKING, Any, NoReturn
 
-from veragmil_suite.utils.cli.kinds import Choice, Kind, ListOf, count
+from veragmil_suite.utils.cli.kinds import Choice, Kind, ListOf, image_side
+from veragmil_suite.utils.whole_files import same_file
 
 if TYPE_CHECKING:
     import types
@@ -41,10 +42,15 @@ class HelpFormatter(argparse.RawDescriptionHelpFormatter):
 
 
 class Flatten(argparse.Action):
-    """Stores the items of a ListOf option's values as one list."""
+    """Stores the items of a ListOf option's values as one list; an item given twice is refused (each list names a
+    set: foods, cameras, demos, seeds, algorithms; twice would do the same work twice, or fail on it part-way)."""
 
     def __call__(self, parser, namespace, values, option_string=None):
-        setattr(namespace, self.dest, [item for value in values for item in value])
+        items = [item for value in values for item in value]
+        twice = next((item for i, item in enumerate(items) if item in items[:i]), None)
+        if twice is not None:
+            parser.error(f"argument {option_string or self.metavar or self.dest}: {twice} given twice")
+        setattr(namespace, self.dest, items)
 
 
 class _HeightWidth(argparse.Action):
@@ -59,10 +65,10 @@ class _HeightWidth(argparse.Action):
 def add_image_size(parser: Parser, height: int, width: int, old: Iterable[str] = ()) -> None:
     """--camera-height and --camera-width (robomimic's names), in pixels; ``old`` spellings of a combined
     ``H [W]`` option stay accepted, hidden."""
-    parser.add_argument("--camera-height", type=count, default=height, metavar="PX", help="image height, pixels")
-    parser.add_argument("--camera-width", type=count, default=width, metavar="PX", help="image width, pixels")
+    parser.add_argument("--camera-height", type=image_side, default=height, metavar="PX", help="image height, pixels")
+    parser.add_argument("--camera-width", type=image_side, default=width, metavar="PX", help="image width, pixels")
     if old:
-        parser.add_argument(*old, type=count, nargs="+", action=_HeightWidth, dest=argparse.SUPPRESS,
+        parser.add_argument(*old, type=image_side, nargs="+", action=_HeightWidth, dest=argparse.SUPPRESS,
                             default=argparse.SUPPRESS, help=argparse.SUPPRESS)  # fmt: skip
 
 
@@ -156,6 +162,10 @@ class Parser(argparse.ArgumentParser):
             given, flagged = getattr(namespace, dest, None), getattr(namespace, f"{dest}_option", None)
             if given and flagged:
                 self.error(f"give {dest.upper()} or {option}, not both")
+            paths = (given or flagged) if many else []
+            twice = next((p for i, p in enumerate(paths or []) if any(same_file(p, q) for q in paths[:i])), None)
+            if twice is not None:
+                self.error(f"{dest.upper()} {twice} is given twice")
             if not given and not flagged:
                 self.error(f"give {dest.upper()}{' (one or more)' if many else ''} or {option}")
             setattr(namespace, dest, given or flagged)
