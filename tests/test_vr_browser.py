@@ -113,7 +113,8 @@ def test_a_vr_collection_in_chromium_discards_keeps_and_saves_scoop_granular_dem
     collect = subprocess.Popen(
         [str(Path(sys.executable).with_name("veragmil-collect")), "--device", "vr", "--vr-port", str(port),
          "--vr-allow-emulated", "--food", "pasta", "--n-grains", "12", "--camera-size", "64", "--episodes", "1",
-         "--operator", "browser", "--output", str(out)],
+         "--operator", "browser", "--output", str(out),
+         "--horizon", "2000"],  # 100 s: a page slowed by a loaded host ends its episode by A or B, not the horizon
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
     steps = [
