@@ -6,9 +6,7 @@ when it is defined), the SpoonGripper (gripper_types="SpoonGripper") and the Gym
 "diffusion_policy") as soon as robomimic is imported (veragmil_suite.learning.algos).
 """
 
-import os
-
-from veragmil_suite.utils.rendering import use_headless_rendering
+from veragmil_suite.utils.rendering import has_display, use_headless_rendering
 from veragmil_suite.utils.upstream_logging import drop_missing_examples_warning
 
 __version__ = "0.1.0"
@@ -19,7 +17,7 @@ drop_missing_examples_warning()
 
 # Without a display, OSMesa by default (why: veragmil_suite.utils.rendering). Only a default: it must precede
 # robosuite's import, so import veragmil_suite first (or set MUJOCO_GL yourself).
-if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+if not has_display():
     use_headless_rendering()
 
 from veragmil_suite.environments.scoop import ScoopGranular  # noqa: E402

@@ -61,7 +61,7 @@ from veragmil_suite.utils.cli.handler import UsageError, command
 from veragmil_suite.utils.cli.parser import Parser
 from veragmil_suite.utils.distributed import add_ray_argument, check_ray_argument
 from veragmil_suite.utils.numbers import seed_span_problem
-from veragmil_suite.utils.rendering import use_headless_rendering
+from veragmil_suite.utils.rendering import has_display, use_headless_rendering
 
 # robosuite's devices (its collect_human_demonstrations.py), then ours
 ROBOSUITE_DEVICES = ("keyboard", "spacemouse", "dualsense", "mjgui")
@@ -241,9 +241,9 @@ def check_args(args: argparse.Namespace) -> None:
         raise UsageError("--ray needs --device scripted (one person drives one device)")
     if args.device == "mjgui" and args.renderer != "mjviewer":
         raise UsageError("--device mjgui drags the spoon's target in MuJoCo's viewer: it needs --renderer mjviewer")
-    if args.device in ("keyboard", "mjgui") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+    if args.device in ("keyboard", "mjgui") and not has_display():
         raise UsageError(f"--device {args.device} needs a display (no DISPLAY is set)")
-    if args.render == "on" and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+    if args.render == "on" and not has_display():
         raise UsageError("--render on needs a display (no DISPLAY is set): use --render off")
     if args.depth and not args.camera_names:
         raise UsageError("--depth records <camera>_depth beside each camera's image: give --camera-names")
@@ -319,8 +319,7 @@ def main(args: argparse.Namespace) -> int:
 
     import veragmil_suite  # noqa: F401  (registers ScoopGranular)
 
-    has_display = bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
-    render = args.render == "on" or (args.render == "auto" and args.device != "scripted" and has_display)
+    render = args.render == "on" or (args.render == "auto" and args.device != "scripted" and has_display())
     keep_policy = args.keep or ("success" if args.device == "scripted" else "ask")
     max_attempts = args.max_attempts or (3 * args.episodes + 2 if args.device == "scripted" else None)
     source = "scripted" if args.device == "scripted" else "human"

@@ -31,6 +31,7 @@ from veragmil_suite.learning.config_values import build_config
 from veragmil_suite.learning.observation_sets import WRENCH_OBSERVATIONS
 from veragmil_suite.utils import cli
 from veragmil_suite.utils.cli.handler import UsageError
+from veragmil_suite.utils.rendering import has_display
 from veragmil_suite.utils.whole_files import same_file
 
 SCRIPTS = {
@@ -152,13 +153,12 @@ def build_parser(module_name: str) -> cli.Parser:
 
 def check_args(module_name: str, args: argparse.Namespace) -> None:
     """What robomimic's scripts assert or fail on later, refused before they run: UsageError names the conflict."""
-    has_display = bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
     if module_name != "robomimic.scripts.train" and getattr(args, "dataset", "") is None:
         raise UsageError("give --dataset FILE (a robomimic dataset)")
     if getattr(args, "render", False):
         if getattr(args, "video_path", None) is not None:
             raise UsageError("give --render (on screen) or --video_path (a video), not both")
-        if not has_display:
+        if not has_display():
             raise UsageError("--render needs a display (no DISPLAY is set); write a video with --video_path instead")
         names = getattr(args, "camera_names", None) or getattr(args, "render_image_names", None) or []
         if len(names) > 1:

@@ -22,7 +22,7 @@ from veragmil_suite.learning.observation_sets import (
 from veragmil_suite.models.foods import DEFAULT_PHYSICS, TRAINING_FOODS, UNSEEN_FOODS, check_physics, get_food
 from veragmil_suite.models.humanoid import check_robot
 from veragmil_suite.utils import cli
-from veragmil_suite.utils.numbers import is_whole, seed_span_problem
+from veragmil_suite.utils.numbers import first_repeated, is_whole, seed_span_problem
 
 # Seeds of recorded episodes and of evaluation episodes never meet: evaluation bowls are not training bowls.
 EVAL_SEED_OFFSET = 100_000
@@ -59,8 +59,7 @@ class Option:
 
 def _algo_epochs(pairs: list[tuple[str, int]]) -> dict[str, int]:
     """--algo-epochs as a dict; an algorithm given twice is refused (which budget was meant?)."""
-    algos = [algo for algo, _ in pairs]
-    twice = next((algo for i, algo in enumerate(algos) if algo in algos[:i]), None)
+    twice = first_repeated([algo for algo, _ in pairs])
     if twice is not None:
         raise ValueError(f"algo_epochs gives {twice} two budgets: give one")
     return dict(pairs)

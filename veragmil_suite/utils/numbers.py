@@ -1,9 +1,11 @@
 """What an argument that takes a number accepts: a real, finite number or an integer, never a bool (True is an int
-to Python, and would be taken as 1); and the seeds a run derives from its first."""
+to Python, and would be taken as 1); the seeds a run derives from its first; an item a list of settings repeats."""
 
 from __future__ import annotations
 
 import math
+import operator
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -23,6 +25,11 @@ def is_number(value: Any) -> bool:
 def is_whole(value: Any) -> bool:
     """An integer (not a bool), Python's or NumPy's."""
     return not isinstance(value, (bool, np.bool_)) and isinstance(value, (int, np.integer))
+
+
+def first_repeated(items: list, same: Callable[[Any, Any], bool] = operator.eq) -> Any:
+    """The first item of ``items`` that repeats an earlier one (``same``), None when none does."""
+    return next((item for i, item in enumerate(items) if any(same(item, earlier) for earlier in items[:i])), None)
 
 
 def seed_span_problem(first: int, count: int, what: str = "episode") -> str | None:

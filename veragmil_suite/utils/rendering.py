@@ -17,6 +17,11 @@ import os
 from collections.abc import MutableMapping
 
 
+def has_display() -> bool:
+    """Whether a window can open: an X or Wayland display is set."""
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
 def use_headless_rendering(force: bool = False, environ: MutableMapping[str, str] | None = None) -> None:
     """
     Sets MuJoCo's and PyOpenGL's OpenGL platform to OSMesa.

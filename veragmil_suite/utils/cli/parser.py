@@ -14,6 +14,7 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from typing import TYPE_CHECKING, Any, NoReturn
 
 from veragmil_suite.utils.cli.kinds import Choice, Kind, ListOf, image_side
+from veragmil_suite.utils.numbers import first_repeated
 from veragmil_suite.utils.whole_files import same_file
 
 if TYPE_CHECKING:
@@ -47,7 +48,7 @@ class Flatten(argparse.Action):
 
     def __call__(self, parser, namespace, values, option_string=None):
         items = [item for value in values for item in value]
-        twice = next((item for i, item in enumerate(items) if item in items[:i]), None)
+        twice = first_repeated(items)
         if twice is not None:
             parser.error(f"argument {option_string or self.metavar or self.dest}: {twice} given twice")
         setattr(namespace, self.dest, items)
@@ -163,7 +164,7 @@ class Parser(argparse.ArgumentParser):
             if given and flagged:
                 self.error(f"give {dest.upper()} or {option}, not both")
             paths = (given or flagged) if many else []
-            twice = next((p for i, p in enumerate(paths or []) if any(same_file(p, q) for q in paths[:i])), None)
+            twice = first_repeated(paths or [], same_file)
             if twice is not None:
                 self.error(f"{dest.upper()} {twice} is given twice")
             if not given and not flagged:
