@@ -19,6 +19,7 @@ Run on an otherwise idle machine; the figures do not depend on its speed.
 from __future__ import annotations
 
 import argparse
+import sys
 
 import numpy as np
 import robosuite
@@ -27,6 +28,7 @@ from robosuite.controllers import load_part_controller_config
 
 import veragmil_suite  # noqa: F401  (registers ScoopGranular)
 from veragmil_suite.controllers.scoop_config import ROBOSUITE_OSC_KP, load_scoop_controller_config
+from veragmil_suite.utils import cli
 
 CONFIGS = ("ours", "robosuite", "robosuite-frictionless", "ik")
 CLEARANCE_M = 0.08
@@ -98,14 +100,22 @@ def hold_errors(name: str, hold_s: float, food: str) -> dict[str, tuple[float, f
     return errors
 
 
-def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--configs", nargs="+", choices=CONFIGS, default=list(CONFIGS))
-    parser.add_argument("--hold-s", type=float, default=3.0, help="seconds each target is held (default 3)")
-    parser.add_argument("--food", default="barley", help="the pile under the spoon (it is not touched)")
-    args = parser.parse_args(argv)
-    if args.hold_s <= 0:
-        parser.error(f"--hold-s must be positive, got {args.hold_s}")
+def build_parser() -> cli.Parser:
+    parser = cli.Parser("bench_controller.py", description=__doc__)
+    parser.add_argument(
+        "--configs",
+        type=cli.ListOf(cli.Choice("controller configuration", CONFIGS)),
+        default=list(CONFIGS),
+        help="the configurations compared",
+    )
+    parser.add_argument("--hold-s", type=cli.positive, default=3.0, help="seconds each target is held")
+    parser.add_argument("--food", type=cli.food, default="barley", help="the pile under the spoon (it is not touched)")
+    return parser
+
+
+@cli.command(build_parser)
+def main(args: argparse.Namespace) -> int:
+    """Each configuration's error after each move, and the worst of each."""
     results = {name: hold_errors(name, args.hold_s, args.food) for name in args.configs}
     width = max(len(m) for m in MOVES)
     print(f"position error (mm) / orientation error (deg) after a {args.hold_s:g} s hold")
@@ -124,7 +134,8 @@ def main(argv: list[str] | None = None) -> None:
         ours = max(e[0] for e in results["ours"].values())
         stock = max(e[0] for e in results["robosuite"].values())
         print(f"\nworst position error: ours {ours:.2f} mm, robosuite's defaults {stock:.2f} mm ({stock / ours:.1f}x)")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

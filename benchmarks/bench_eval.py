@@ -19,7 +19,10 @@ import sys
 os.environ["MUJOCO_GL"] = os.environ["PYOPENGL_PLATFORM"] = "osmesa"
 os.environ.setdefault("PYNPUT_BACKEND", "dummy")
 
-from veragmil_suite.utils.timing import stopwatch  # noqa: E402  (the package imports robosuite: after MUJOCO_GL)
+# the package imports robosuite: after MUJOCO_GL
+from veragmil_suite.utils import cli  # noqa: E402
+from veragmil_suite.utils.numbers import seed_span_problem  # noqa: E402
+from veragmil_suite.utils.timing import stopwatch  # noqa: E402
 
 TARGET_RATIO = 1.7
 SECONDS_PER_MINUTE = 60.0
@@ -44,14 +47,24 @@ def bench(spec: str, food: str, episodes: int, processes: int, horizon: int, see
     )
 
 
-def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--food", default="pasta")
-    p.add_argument("--episodes", type=int, default=8, help="episodes per measurement (even: 2 workers share them)")
-    p.add_argument("--horizon", type=int, default=400)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--checkpoint", default=None, help="also measure this robomimic checkpoint")
-    args = p.parse_args(argv)
+def build_parser() -> cli.Parser:
+    parser = cli.Parser("bench_eval.py", description=__doc__)
+    parser.add_argument("--food", type=cli.food, default="pasta", help="the food of the episodes")
+    parser.add_argument(
+        "--episodes", type=cli.count, default=8, help="episodes per measurement (even: 2 workers share them)"
+    )
+    parser.add_argument("--horizon", type=cli.count, default=400, help="control steps an episode may take at most")
+    parser.add_argument("--seed", type=cli.seed, default=0, help="the first episode's seed")
+    parser.add_argument("--checkpoint", type=cli.checkpoint, help="also measure this robomimic checkpoint")
+    return parser
+
+
+@cli.command(build_parser)
+def main(args: argparse.Namespace) -> int:
+    """The expert (and --checkpoint) with 1 and 2 worker processes, and the ratio of their rates."""
+    problem = seed_span_problem(args.seed, args.episodes)
+    if problem:
+        raise cli.UsageError(problem)
     agents = {"expert": "expert"}
     if args.checkpoint:
         agents["checkpoint"] = args.checkpoint

@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -29,7 +30,9 @@ SAMPLE_DATA = ROOT / "demos" / "scoop.hdf5"
 os.environ["MUJOCO_GL"] = os.environ["PYOPENGL_PLATFORM"] = "osmesa"
 os.environ.setdefault("PYNPUT_BACKEND", "dummy")
 
-from veragmil_suite.utils.timing import stopwatch  # noqa: E402  (the package imports robosuite: after MUJOCO_GL)
+# the package imports robosuite: after MUJOCO_GL
+from veragmil_suite.utils import cli  # noqa: E402
+from veragmil_suite.utils.timing import stopwatch  # noqa: E402
 
 # (scheduler, denoising steps, actions executed per prediction): the config's case first
 CASES = (("ddim", 10, 8), ("ddim", 5, 8), ("ddpm", 100, 8), ("ddim", 10, 1))
@@ -99,19 +102,38 @@ def bench_case(config, ckpt, scheduler: str, denoising_steps: int, chunk: int, s
     )
 
 
-def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--checkpoint", default=None, help="a diffusion_policy checkpoint (default: untrained)")
-    parser.add_argument("--steps", type=int, default=48, help="timed control steps per case (a multiple of 8)")
-    parser.add_argument("--threads", type=int, nargs="+", default=[1, 2], help="torch thread counts")
-    args = parser.parse_args(argv)
+def build_parser() -> cli.Parser:
+    parser = cli.Parser("bench_policy.py", description=__doc__)
+    parser.add_argument("--checkpoint", type=cli.checkpoint, help="a diffusion_policy checkpoint (default: untrained)")
+    parser.add_argument(
+        "--steps", type=cli.count, default=48, help="timed control steps per case (a multiple of every case's chunk)"
+    )
+    parser.add_argument("--threads", type=cli.ListOf(cli.count), default=[1, 2], help="torch thread counts")
+    return parser
 
-    from veragmil_suite.learning import robomimic_compat  # the package imports robosuite: after MUJOCO_GL
+
+@cli.command(build_parser)
+def main(args: argparse.Namespace) -> int:
+    """Each case of CASES with each thread count, and the table of their rates."""
+    chunks = sorted({chunk for _, _, chunk in CASES})
+    if any(args.steps % chunk for chunk in chunks):
+        raise cli.UsageError(f"--steps {args.steps}: must be a multiple of every case's chunk ({chunks})")
+
+    from veragmil_suite.learning import robomimic_compat
 
     robomimic_compat.install()
+    import h5py  # with robomimic, after robomimic_compat.install()
     import torch  # heavy: torch, after robomimic_compat.install()
 
     config, ckpt = _config(args.checkpoint)
+    if ckpt is not None and config.algo_name != "diffusion_policy":
+        raise cli.UsageError(
+            f"--checkpoint {args.checkpoint}: a {config.algo_name} checkpoint; give a diffusion_policy one"
+        )
+    with h5py.File(SAMPLE_DATA, "r") as f:
+        length = len(f["data/demo_0/actions"])
+    if args.steps >= length:
+        raise cli.UsageError(f"--steps {args.steps}: the sample data's first demo has {length} steps; give fewer")
     load_before = os.getloadavg()[0]
     rows = []
     for threads in args.threads:
@@ -134,7 +156,8 @@ def main(argv: list[str] | None = None) -> None:
             f"| {r['scheduler'].upper()} | {r['denoising_steps']} | {r['chunk']} | {r['threads']} | "
             f"{r['steps_per_s']:.1f} | {r['cpu_steps_per_s']:.1f} | {r['predict_ms']:.0f} | {r['predict_cpu_ms']:.0f} |"
         )
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -11,7 +11,7 @@ here vs in a Ray task). Each side is measured --repeats times, alternating, and 
 average is printed before and after: other processes on the cores slow both sides.
 
     python benchmarks/bench_ray.py                      # about 5 minutes on 2 idle cores
-    python benchmarks/bench_ray.py --episodes 8 --demos 4 --steps 50 --repeats 3
+    python benchmarks/bench_ray.py --episodes 8 --recorded-demos 4 --steps 50 --repeats 3
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ os.environ.setdefault("PYNPUT_BACKEND", "dummy")
 from veragmil_suite.evaluation.evaluate import evaluate  # noqa: E402
 from veragmil_suite.study.logged_run import console  # noqa: E402
 from veragmil_suite.study.training import train_piece, training_config, training_resources  # noqa: E402
+from veragmil_suite.utils import cli  # noqa: E402
 from veragmil_suite.utils.distributed import THIS_MACHINE, ray_session, run_pieces  # noqa: E402
 from veragmil_suite.utils.timing import stopwatch  # noqa: E402
 
@@ -50,14 +51,19 @@ def _load() -> str:
     return " ".join(f"{x:.2f}" for x in os.getloadavg())
 
 
-def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--cpus", type=int, default=2, help="local worker processes, and the Ray instance's CPUs")
-    p.add_argument("--episodes", type=int, default=4, help="expert episodes per evaluation")
-    p.add_argument("--demos", type=int, default=2, help="demos per recording")
-    p.add_argument("--steps", type=int, default=10, help="gradient steps of the training run")
-    p.add_argument("--repeats", type=int, default=2, help="measurements of each side (the fastest is kept)")
-    args = p.parse_args(argv)
+def build_parser() -> cli.Parser:
+    parser = cli.Parser("bench_ray.py", description=__doc__)
+    parser.add_argument("--cpus", type=cli.count, default=2, help="local worker processes, and the Ray instance's CPUs")
+    parser.add_argument("--episodes", type=cli.count, default=4, help="expert episodes per evaluation")
+    parser.add_argument("--recorded-demos", type=cli.count, default=2, help="demos per recording")
+    parser.add_argument("--steps", type=cli.count, default=10, help="gradient steps of the training run")
+    parser.add_argument("--repeats", type=cli.count, default=2, help="measurements of each side (the fastest is kept)")
+    return parser
+
+
+@cli.command(build_parser)
+def main(args: argparse.Namespace) -> int:
+    """Each row's pieces locally and on a local Ray instance, alternating, and the ratio of their fastest times."""
 
     print(f"load average before: {_load()}", flush=True)
     work = Path(tempfile.mkdtemp(prefix="bench_ray_"))
@@ -77,7 +83,7 @@ def main(argv: list[str] | None = None) -> int:
             command += ["--output-dir", str(work / f"eval{next(runs)}"), "--horizon", str(HORIZON)]
         else:
             command = [*console(name), "--device", "scripted", "--food", FOOD, "--n-grains", str(N_GRAINS), "--quiet"]
-            command += ["--episodes", str(args.demos), "--horizon", str(HORIZON), "--cameras"]
+            command += ["--episodes", str(args.recorded_demos), "--horizon", str(HORIZON), "--cameras"]
             command += ["--output", str(work / f"data{next(runs)}.hdf5")]
         subprocess.run([*command, *where], check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
@@ -119,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
             lambda: program("veragmil-evaluate", "--ray", address),
         )
         row(
-            f"veragmil-collect, {args.demos} demos",
+            f"veragmil-collect, {args.recorded_demos} demos",
             lambda: program("veragmil-collect", "--workers", str(args.cpus)),
             lambda: program("veragmil-collect", "--ray", address),
         )

@@ -36,7 +36,11 @@ os.environ.setdefault("MUJOCO_GL", "osmesa")
 os.environ.setdefault("PYOPENGL_PLATFORM", os.environ["MUJOCO_GL"])
 os.environ.setdefault("PYNPUT_BACKEND", "dummy")
 
-from veragmil_suite.utils.timing import stopwatch  # noqa: E402  (the package imports robosuite: after MUJOCO_GL)
+# the package imports robosuite: after MUJOCO_GL
+from veragmil_suite.utils import cli  # noqa: E402
+from veragmil_suite.utils.timing import stopwatch  # noqa: E402
+
+TORCH_DEVICES = ("cpu", "cuda")
 
 
 def bench_algo(name: str, dataset: str, steps: int, device: str = "cpu") -> dict:
@@ -89,30 +93,50 @@ def bench_algo(name: str, dataset: str, steps: int, device: str = "cpu") -> dict
     )
 
 
-def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def build_parser() -> cli.Parser:
+    parser = cli.Parser("bench_training.py", description=__doc__)
     parser.add_argument(
         "--algos",
-        nargs="+",
+        type=cli.ListOf(cli.Choice("config", lambda: sorted(p.stem for p in CONFIG_DIR.glob("*.json")))),
         default=["bc", "bc_rnn", "bcq", "bc_image", "diffusion_policy"],
         help="configs/json names",
     )
-    parser.add_argument("--dataset", default=None, help="robomimic HDF5 with the configs' observation keys")
-    parser.add_argument("--steps", type=int, default=30, help="timed gradient steps, low-dim configs")
-    parser.add_argument("--image-steps", type=int, default=3, help="timed gradient steps, image configs")
     parser.add_argument(
-        "--diffusion-steps", type=int, default=3, help="timed gradient steps, Diffusion Policy (a 66M-weight U-Net)"
+        "--dataset", type=cli.robomimic_dataset, help="robomimic HDF5 with the configs' observation keys"
+    )
+    parser.add_argument("--steps", type=cli.count, default=30, help="timed gradient steps, low-dim configs")
+    parser.add_argument("--image-steps", type=cli.count, default=3, help="timed gradient steps, image configs")
+    parser.add_argument(
+        "--diffusion-steps",
+        type=cli.count,
+        default=3,
+        help="timed gradient steps, Diffusion Policy (a 66M-weight U-Net)",
     )
     parser.add_argument(
-        "--threads", type=int, nargs="+", default=[1, 2], help="torch thread counts (robomimic's train.py uses 2)"
+        "--threads",
+        type=cli.ListOf(cli.count),
+        default=[1, 2],
+        help="torch thread counts (robomimic's train.py uses 2)",
     )
-    parser.add_argument("--device", default="cpu", help="torch device the networks train on (cpu, cuda)")
-    args = parser.parse_args(argv)
+    parser.add_argument(
+        "--device",
+        type=cli.Choice("torch device", TORCH_DEVICES),
+        default="cpu",
+        help="torch device the networks train on",
+    )
+    return parser
 
-    from veragmil_suite.learning import robomimic_compat  # the package imports robosuite: after MUJOCO_GL
+
+@cli.command(build_parser)
+def main(args: argparse.Namespace) -> int:
+    """Each config with each thread count, and the table of their rates."""
+    from veragmil_suite.learning import robomimic_compat
 
     robomimic_compat.install()
     import torch  # heavy: torch, after robomimic_compat.install()
+
+    if args.device == "cuda" and not torch.cuda.is_available():
+        raise cli.UsageError(f"--device cuda: torch finds no CUDA device here (accepted: {', '.join(TORCH_DEVICES)})")
 
     dataset = args.dataset
     if dataset is None:
@@ -154,6 +178,7 @@ def main(argv: list[str] | None = None) -> None:
             f"{r['steps_per_cpu_s']:.2f} | "
             f"{r['samples_per_s']:.0f} | {r['frames_per_s']:.0f} | {shares} |"
         )
+    return 0
 
 
 def _device_name(device: str) -> str:
@@ -174,4 +199,4 @@ def _version(package: str) -> str:
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -38,6 +38,7 @@ import json
 import multiprocessing
 import os
 import random
+import sys
 import time
 
 # OSMesa whatever the display (veragmil_suite.utils.rendering's forced choice), set before robosuite is imported
@@ -52,8 +53,10 @@ from veragmil_suite.devices import VRDevice, VRServerOptions, VRStreamOptions  #
 from veragmil_suite.devices.vr.client import HAND, Client, controller, pose_message, ws_url  # noqa: E402
 from veragmil_suite.devices.vr.protocol import unpack_frame  # noqa: E402
 from veragmil_suite.devices.vr.render import Renderer, depth_colormap, encode_jpeg  # noqa: E402
-from veragmil_suite.models.foods import PHYSICS  # noqa: E402
+from veragmil_suite.utils import cli  # noqa: E402
 from veragmil_suite.utils.timing import per_call  # noqa: E402
+
+SECTIONS = (1, 2, 3, 4, 5)  # the numbered parts of this module's docstring
 
 
 def make(env_name: str, control_freq: int = 20, physics: str | None = None):
@@ -430,16 +433,35 @@ def bench_hand_to_frame(trials: int, env_name: str = "ScoopGranular", physics: s
         print(f"      {'hand -> frame decoded':36s} {_summary(decoded)}")
 
 
-def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--seconds", type=float, default=8.0, help="length of each real-time run")
-    p.add_argument("--messages", type=int, default=20000, help="messages in the throughput run")
-    p.add_argument("--trials", type=int, default=100, help="hand moves per frame schedule in the hand-to-frame run")
-    p.add_argument("--sections", default="1,2,3,4,5", help="which sections to run, e.g. 5 or 1,3")
-    p.add_argument("--env", default="ScoopGranular", help="hand-to-frame: the task (Lift: a cheaper simulation)")
-    p.add_argument("--physics", choices=PHYSICS, help="hand-to-frame: ScoopGranular's physics (default: the task's)")
-    args = p.parse_args()
-    sections = {int(x) for x in args.sections.split(",")}
+def build_parser() -> cli.Parser:
+    parser = cli.Parser("bench_vr.py", description=__doc__)
+    parser.add_argument("--seconds", type=cli.positive, default=8.0, help="length of each real-time run")
+    parser.add_argument("--messages", type=cli.count, default=20000, help="messages in the throughput run")
+    parser.add_argument(
+        "--trials", type=cli.count, default=100, help="hand moves per frame schedule in the hand-to-frame run"
+    )
+    parser.add_argument(
+        "--sections",
+        type=cli.ListOf(cli.Integer(1, len(SECTIONS), accepted=f"a section in [1, {len(SECTIONS)}]")),
+        default=list(SECTIONS),
+        help="which sections to run, e.g. 5 or 1,3",
+    )
+    parser.add_argument(
+        "--env",
+        type=cli.Choice("environment", ("ScoopGranular", "Lift")),
+        default="ScoopGranular",
+        help="hand-to-frame: the task (Lift: a cheaper simulation)",
+    )
+    parser.add_argument(
+        "--physics", type=cli.physics, help="hand-to-frame: ScoopGranular's physics (default: the task's)"
+    )
+    return parser
+
+
+@cli.command(build_parser)
+def main(args: argparse.Namespace) -> int:
+    """The sections asked for, in order."""
+    sections = set(args.sections)
     print(f"{os.cpu_count()} CPUs, MUJOCO_GL={os.environ['MUJOCO_GL']}, load average {os.getloadavg()[0]:.2f}")
     if 1 in sections:
         bench_render()
@@ -456,7 +478,8 @@ def main() -> None:
     if 5 in sections:
         bench_hand_to_frame(args.trials, args.env, args.physics)
     print(f"load average at the end {os.getloadavg()[0]:.2f} (other processes share the CPUs: figures are theirs too)")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -1,23 +1,22 @@
-"""One clear line for the bad inputs issues found, in the console programs of setup.py: exit status 2, the problem
-and the accepted values named, no traceback, nothing created. tests/test_cli.py generates the same check for every
-option of every program from the parsers themselves; the cases here are those found by hand (issue 33 and before),
-many refused after parsing, where what is wrong is a combination or a file's content."""
+"""One clear line for the bad inputs issues found, in the console programs of setup.py and the benchmark scripts:
+exit status 2, the problem and the accepted values named, no traceback, nothing created. tests/test_cli.py generates
+the same check for every option of every program from the parsers themselves; the cases here are those found by hand
+(issue 33 and before), many refused after parsing, where what is wrong is a combination or a file's content."""
 
-import importlib
 import json
 import logging
-import re
 import socket
 import sys
 from pathlib import Path
 
 import pytest
+from helpers.programs import main_of
 
 from veragmil_suite.learning.algorithms import ALGORITHMS
 
 ROOT = Path(__file__).resolve().parents[1]
-ENTRY_POINTS = dict(re.findall(r'"(veragmil-[\w-]+)=([\w.]+:\w+)"', (ROOT / "setup.py").read_text()))
 SAMPLE = str(ROOT / "demos" / "scoop.hdf5")
+CHECKPOINT = str(next((ROOT / "models" / "checkpoints").glob("*.pth")))
 LIGHT = ["--food", "pasta", "--n-grains", "12"]
 SCRIPTED = ["--device", "scripted", *LIGHT]
 EVAL = ["--agent", "expert", "--output-dir", "{tmp}/e"]
@@ -78,6 +77,11 @@ CASES = [
      "--render_image_names", "agentview_image"], "with --use-obs, an image observation the dataset stores; "
      "accepted: overhead_image"),
     ("veragmil-dataset-info", ["{missing}"], "no such file"),
+    ("benchmarks/bench_against.py", ["--base", "{tmp}"], "holds no veragmil_suite/__init__.py"),
+    ("benchmarks/bench_eval.py", ["--seed", "4294967295", "--episodes", "2"], "past numpy's largest seed"),
+    ("benchmarks/bench_policy.py", ["--steps", "12"], "--steps 12: must be a multiple of every case's chunk ([1, 8])"),
+    ("benchmarks/bench_policy.py", ["--steps", "200"], "--steps 200: the sample data's first demo has 193 steps"),
+    ("benchmarks/bench_policy.py", ["--checkpoint", CHECKPOINT], "a bc checkpoint; give a diffusion_policy one"),
     ("veragmil-dataset-info", ["{tmp}"], "is a directory"),
     ("veragmil-merge", ["{missing}", "--output", "{tmp}/m.hdf5"], "no such file"),
     ("veragmil-merge", [SAMPLE, "--output", "{tmp}"], "is a directory, not a dataset file"),
@@ -251,9 +255,7 @@ def _check_one_clear_line(program, args, message, tmp_path, capsys):
 
 
 def _run_and_check(program, argv, message, tmp_path, before, capsys):
-    module, function = ENTRY_POINTS[program].split(":")
-    main = getattr(importlib.import_module(module), function)
-    code = main(argv)
+    code = main_of(program)(argv)
     out, err = capsys.readouterr()
     # what the program said: robosuite's and robomimic's import warnings aside (argparse's usage block is not
     # printed: one line)
@@ -298,7 +300,6 @@ def test_a_malformed_number_in_the_environment_gets_one_clear_line(name, value, 
     _run_and_check("veragmil-train", ["--config", str(config), "--dataset", SAMPLE], message, tmp_path, before, capsys)
 
 
-CHECKPOINT = str(next((ROOT / "models" / "checkpoints").glob("*.pth")))
 EVALUATION = str(ROOT / "results" / "grid_size_expert_bc" / "results.json")
 # (program, arguments, what the one line must say) with an output that is there already, or is an input: {d} is a
 # folder holding data.hdf5 (the sample), link.hdf5 (a hard link to it), old.mp4, old.hdf5, a finished evaluation

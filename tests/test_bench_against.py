@@ -20,18 +20,3 @@ def test_both_sides_run_their_own_checkout_and_the_ratio_is_printed(tmp_path):
     assert [row[1] for row in rows] == ["base", "this"]
     assert all(row[-1] in ("0/1", "1/1") for row in rows), out  # each side's one episode is counted
     assert "pasta, whole expert episodes, this / base: " in out
-
-
-def test_a_base_without_the_package_is_refused_by_name(tmp_path):
-    result = run_script(SCRIPT, "--base", tmp_path, check=False)
-    assert result.returncode == 2 and f"--base {tmp_path} holds no veragmil_suite package" in result.stderr
-
-
-def test_an_unknown_food_is_refused_naming_the_accepted_ones():
-    result = run_script(SCRIPT, "--base", ROOT, "--food", "caviar", check=False)
-    assert result.returncode == 2 and "unknown food 'caviar'; accepted foods: rice" in result.stderr
-
-
-def test_a_bowl_without_grains_is_refused():
-    result = run_script(SCRIPT, "--base", ROOT, "--n-grains", "0", check=False)
-    assert result.returncode == 2 and "--n-grains must be at least 1, got 0" in result.stderr

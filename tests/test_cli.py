@@ -1,5 +1,6 @@
 """
-Every console program's command line, walked from setup.py: each option takes a kind of value
+Every console program's command line, walked from setup.py (and the benchmark scripts, run as python
+benchmarks/NAME.py): each option takes a kind of value
 (veragmil_suite.utils.cli), and this table GENERATES its cases from the parsers themselves: every option of every
 console program is fed values of the wrong type, out of range, and paths that are missing, a directory, read-only
 or too long, and each must be refused in one line naming the option, exit 2. A program or an option added tomorrow
@@ -12,21 +13,17 @@ commands committed in results/*/RUN.md still parsing.
 
 import argparse
 import functools
-import importlib
 import os
 import re
 import shlex
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from helpers.programs import BENCHMARKS, BIN, ENTRY_POINTS, PROGRAMS, ROOT, command_of, main_of
 
 from veragmil_suite.utils import cli
 
-ROOT = Path(__file__).resolve().parents[1]
-ENTRY_POINTS = dict(re.findall(r'"(veragmil-[\w-]+)=([\w.]+:\w+)"', (ROOT / "setup.py").read_text()))
-BIN = Path(sys.executable).parent
 # programs that run robomimic's own scripts: robomimic's option names, shown with dashes, its underscores accepted
 ROBOMIMIC_PROGRAMS = {p for p, target in ENTRY_POINTS.items() if target.startswith("veragmil_suite.scripts.robomimic")}
 # one name, two upstream meanings: robosuite's and robomimic's tools both use these words, for different things
@@ -43,11 +40,6 @@ OLD_SPELLINGS = {
     "--ratio": "--valid-ratio",
     "--skip": "--video-skip",
 }
-
-
-def main_of(program: str):
-    module, function = ENTRY_POINTS[program].split(":")
-    return getattr(importlib.import_module(module), function)
 
 
 @functools.cache
@@ -137,6 +129,10 @@ def bad_values(kind: cli.Kind, paths: dict[str, str]) -> list[tuple[str, str]]:
         cases = [("missing", paths["missing_file"]), ("a directory", paths["folder"])]
         cases += [("name too long", paths["far_too_long"])]
         return cases + ([("wrong content", paths["text"])] if kind.check is not None else [])
+    if isinstance(kind, cli.InputFolder):
+        cases = [("missing", paths["missing_file"]), ("a file", paths["text"])]
+        cases += [("name too long", paths["far_too_long"])]
+        return cases + ([("without what it holds", paths["folder"])] if kind.holds else [])
     if isinstance(kind, cli.OutputFile):
         cases = [("a directory", paths["folder"]), ("missing folder", paths["missing"])]
         cases += [("name too long", paths["too_long"])]
@@ -185,7 +181,7 @@ def refusal(parser: argparse.ArgumentParser, argv: list[str], capsys) -> tuple[o
     return code, [line for line in err.splitlines() if line.startswith(f"{parser.prog}: ")], err
 
 
-@pytest.mark.parametrize("program", sorted(ENTRY_POINTS))
+@pytest.mark.parametrize("program", PROGRAMS)
 def test_every_option_refuses_every_kind_of_bad_value_in_one_line(program, paths, capsys):
     parser = parser_of(program)
     cases = [(a, label, text) for a in value_actions(parser) for label, text in bad_values(a.type, paths)]
@@ -204,13 +200,13 @@ def test_every_option_refuses_every_kind_of_bad_value_in_one_line(program, paths
 def test_the_table_covers_every_option_of_every_program(paths):
     """Each console program is walked, and the table holds hundreds of cases (a few per option)."""
     total = 0
-    for program in ENTRY_POINTS:
+    for program in PROGRAMS:
         actions = value_actions(parser_of(program))
         total += sum(len(bad_values(a.type, paths)) for a in actions)
     assert total > 300, total
 
 
-@pytest.mark.parametrize("program", sorted(ENTRY_POINTS))
+@pytest.mark.parametrize("program", PROGRAMS)
 def test_every_program_is_built_by_cli_and_every_value_has_a_kind(program):
     main = main_of(program)
     assert hasattr(main, "build_parser"), f"{program}: its main is not made by cli.command"
@@ -226,11 +222,12 @@ def test_a_sample_of_each_program_refuses_as_a_real_process(paths):
     point's code, which the in-process table above runs for each."""
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     sample = {ENTRY_POINTS[p].split(":")[0]: p for p in sorted(ENTRY_POINTS, reverse=True)}
+    sample.update({program: program for program in BENCHMARKS})
     running = []
     for program in sorted(sample.values()):
         action = next(a for a in value_actions(parser_of(program)) if a.option_strings)
         label, text = bad_values(action.type, paths)[0]
-        argv = [str(BIN / program), *argv_for(action, text)]
+        argv = [*command_of(program), *argv_for(action, text)]
         running.append(
             (program, action, subprocess.Popen(argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE))
         )
@@ -242,7 +239,7 @@ def test_a_sample_of_each_program_refuses_as_a_real_process(paths):
 
 def _check_process(program, action, process):
     out, err = (b.decode() for b in process.communicate(timeout=300))
-    lines = [line for line in err.splitlines() if line.startswith(f"{program}: ")]
+    lines = [line for line in err.splitlines() if line.startswith(f"{parser_of(program).prog}: ")]
     assert process.returncode == 2, (program, err[-2000:])
     assert len(lines) == 1 and f"argument {name_of(action)}" in lines[0], (program, err[-2000:])
     assert "Traceback" not in err + out
@@ -257,7 +254,7 @@ def _visible_names(parser: argparse.ArgumentParser) -> list[tuple[str, argparse.
     return [(a.option_strings[0], a) for a in parser._actions if a.option_strings and a.help != argparse.SUPPRESS]
 
 
-@pytest.mark.parametrize("program", sorted(ENTRY_POINTS))
+@pytest.mark.parametrize("program", PROGRAMS)
 def test_option_names_follow_the_convention(program, capsys):
     parser = parser_of(program)
     # an abbreviation unique today is ambiguous after the next option (robomimic's own scripts allow them)
@@ -279,7 +276,7 @@ def test_option_names_follow_the_convention(program, capsys):
 
 def test_an_option_name_means_one_kind_of_value_in_every_program():
     kinds: dict[str, dict[str, str]] = {}
-    for program in ENTRY_POINTS:
+    for program in PROGRAMS:
         for action in value_actions(parser_of(program)):
             for name in action.option_strings:
                 if not name.startswith("--"):
@@ -302,7 +299,7 @@ def _good_values(kind: cli.Kind) -> list[str]:
     return good[:2]
 
 
-@pytest.mark.parametrize("program", sorted(ENTRY_POINTS))
+@pytest.mark.parametrize("program", PROGRAMS)
 def test_lists_take_spaces_and_commas_alike(program):
     """A list option (not paths, which may hold commas; not a hidden old spelling) takes space- or comma-separated
     values, the same list either way."""
@@ -320,7 +317,7 @@ def test_lists_take_spaces_and_commas_alike(program):
         assert getattr(spaced, action.dest) == getattr(commas, action.dest) == [action.type.item(v) for v in (a, b)]
 
 
-@pytest.mark.parametrize("program", sorted(ENTRY_POINTS))
+@pytest.mark.parametrize("program", PROGRAMS)
 def test_either_spelling_of_an_option_is_accepted(program):
     parser = parser_of(program)
     for name in cli.option_strings(parser):
@@ -375,7 +372,7 @@ def committed_commands() -> list[tuple[str, str, list[str]]]:
                 lexer.commenters = "#"
                 tokens = list(lexer)
                 for i, token in enumerate(tokens):
-                    if token not in ENTRY_POINTS:
+                    if token not in ENTRY_POINTS and token not in BENCHMARKS:
                         continue
                     words = []
                     for word in tokens[i + 1 :]:

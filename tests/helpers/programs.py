@@ -2,13 +2,38 @@
 
 from __future__ import annotations
 
+import functools
+import importlib
+import importlib.util
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
 
 BIN = Path(sys.executable).parent
 ROOT = Path(__file__).parents[2]
+ENTRY_POINTS = dict(re.findall(r'"(veragmil-[\w-]+)=([\w.]+:\w+)"', (ROOT / "setup.py").read_text()))
+# the benchmark scripts, run as python benchmarks/NAME.py: programs a researcher runs too, with the same command line
+BENCHMARKS = {f"benchmarks/{p.name}": p for p in sorted((ROOT / "benchmarks").glob("bench_*.py"))}
+PROGRAMS = [*sorted(ENTRY_POINTS), *BENCHMARKS]
+
+
+@functools.cache
+def main_of(program: str):
+    """The ``main(argv) -> exit status`` of a console program or a benchmark script."""
+    if program in BENCHMARKS:
+        spec = importlib.util.spec_from_file_location(BENCHMARKS[program].stem, BENCHMARKS[program])
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        return module.main
+    module, function = ENTRY_POINTS[program].split(":")
+    return getattr(importlib.import_module(module), function)
+
+
+def command_of(program: str) -> list[str]:
+    """The program as a user starts it."""
+    return [sys.executable, str(BENCHMARKS[program])] if program in BENCHMARKS else [str(BIN / program)]
 
 
 def _run(argv: list, cwd, check: bool, timeout: float) -> subprocess.CompletedProcess:

@@ -69,6 +69,33 @@ class InputFile(Kind):
         return text if result is None else result
 
 
+class InputFolder(Kind):
+    """An existing, readable folder, holding ``holds`` (a path inside it) when given: a checkout's top level, a
+    folder put on a path."""
+
+    def __init__(self, what: str = "folder", holds: str | None = None):
+        self.what = what
+        self.holds = holds
+        self.accepted = f"an existing {what}" + (f" holding {holds}" if holds else "")
+
+    def __call__(self, text: str) -> str:
+        if not str(text).strip():
+            raise self.refuse(text)
+        path = Path(text)
+        problem = _stat_problem(path)
+        if problem:
+            raise argparse.ArgumentTypeError(f"{text}: {problem}")
+        if not path.exists():
+            raise argparse.ArgumentTypeError(f"{text}: no such folder")
+        if not path.is_dir():
+            raise argparse.ArgumentTypeError(f"{text}: is a file, not a {self.what}")
+        if not os.access(path, os.R_OK | os.X_OK):
+            raise argparse.ArgumentTypeError(f"{text}: not readable (permission denied)")
+        if self.holds and not (path / self.holds).is_file():
+            raise argparse.ArgumentTypeError(f"{text}: holds no {self.holds}; must be {self.accepted}")
+        return text
+
+
 def _writable_folder(folder: Path, text: str) -> None:
     if not folder.exists():
         raise argparse.ArgumentTypeError(f"{text}: the folder {str(folder) or '.'} does not exist")
