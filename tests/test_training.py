@@ -350,3 +350,39 @@ def test_the_config_a_run_held_is_read_from_whichever_record_is_whole(tmp_path):
     assert training_resume.held_config(tmp_path) is None
     (tmp_path / training_resume.HELD_CONFIG_FILE).write_text('{"algo_name": "bc_rnn"}')
     assert training_resume.held_config(tmp_path) == {"algo_name": "bc_rnn"}
+
+
+def test_rollout_videos_are_written_whole_and_a_torn_one_is_never_left_under_its_name(tmp_path):
+    """robomimic writes a rollout's video under its final name while it records; the run's videos are recorded in a
+    folder inside and moved into place when the rollouts end, so a kill mid-rollout leaves no torn epoch video."""
+    from veragmil_suite.learning import training_resume
+
+    videos = tmp_path / "videos"
+    videos.mkdir()
+    (videos / training_resume.PARTIAL_VIDEO_DIR).mkdir()
+    (videos / training_resume.PARTIAL_VIDEO_DIR / "old_epoch_1.mp4").write_bytes(b"torn")  # what a kill left
+
+    class Rollouts:
+        killed = False
+
+        def rollout_with_stats(self, video_dir=None, epoch=None, **kwargs):
+            path = Path(video_dir) / f"ScoopGranular_epoch_{epoch}.mp4"
+            path.write_bytes(b"half")
+            assert not (videos / path.name).exists()  # nothing under the final name while it records
+            if self.killed:
+                raise KeyboardInterrupt
+            path.write_bytes(b"whole video")
+            return {"ScoopGranular": {"Success_Rate": 1.0}}, {"ScoopGranular": str(path)}
+
+    rollouts = Rollouts()
+    utils = training_resume.ResumingTrainUtils(rollouts)
+    logs, paths = utils.rollout_with_stats(video_dir=str(videos), epoch=2)
+    assert logs == {"ScoopGranular": {"Success_Rate": 1.0}}
+    assert paths == {"ScoopGranular": str(videos / "ScoopGranular_epoch_2.mp4")}
+    assert (videos / "ScoopGranular_epoch_2.mp4").read_bytes() == b"whole video"
+    assert sorted(p.name for p in videos.iterdir()) == ["ScoopGranular_epoch_2.mp4"]  # the kill's leftover is gone
+    rollouts.killed = True
+    with pytest.raises(KeyboardInterrupt):
+        utils.rollout_with_stats(video_dir=str(videos), epoch=3)
+    assert not (videos / "ScoopGranular_epoch_3.mp4").exists()
+    assert (videos / "ScoopGranular_epoch_2.mp4").read_bytes() == b"whole video"

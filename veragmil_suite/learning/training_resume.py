@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import os
 import random
+import shutil
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -30,6 +31,7 @@ if TYPE_CHECKING:
 RESUME_FILE = "resume.pth"
 # the run's config as it started, written whole: robomimic's own config.json is rewritten in place at every start
 HELD_CONFIG_FILE = "config.held.json"
+PARTIAL_VIDEO_DIR = ".partial"  # inside the run's videos folder: rollout videos while they are recorded
 SECONDS_FILE = "training_seconds.json"  # a finished run's training time, over all its pieces
 RESUME_FORMAT = 1
 # seconds of training between two saves of the resume state; $VERAGMIL_RESUME_EVERY_S overrides (0: every epoch)
@@ -222,9 +224,24 @@ class ResumingTrainUtils:
         return 0 < self._epoch <= self.done
 
     def rollout_with_stats(self, *args: Any, **kwargs: Any) -> tuple[dict, dict | None]:
+        """robomimic's rollouts, their videos written whole: robomimic writes each into ``video_dir`` as it records
+        (a kill leaves a torn video under the epoch's name); here into a folder inside it, each moved into place
+        when the rollouts end. A folder a kill left is emptied at the next rollouts."""
         if self.skipping:
             return {}, None
-        return self._train_utils.rollout_with_stats(*args, **kwargs)
+        video_dir = kwargs.get("video_dir")
+        if video_dir is None:
+            return self._train_utils.rollout_with_stats(*args, **kwargs)
+        partial = Path(video_dir) / PARTIAL_VIDEO_DIR
+        shutil.rmtree(partial, ignore_errors=True)
+        partial.mkdir()
+        logs, paths = self._train_utils.rollout_with_stats(*args, **{**kwargs, "video_dir": str(partial)})
+        whole = {}
+        for env_name, path in paths.items():
+            whole[env_name] = os.path.join(video_dir, os.path.basename(path))
+            os.replace(path, whole[env_name])
+        shutil.rmtree(partial, ignore_errors=True)
+        return logs, whole
 
     def save_model(
         self,

@@ -40,6 +40,22 @@ def _stat_problem(path: Path) -> str | None:
     return None
 
 
+def _readable(text: str, folder: bool, what: str) -> Path:
+    """``text`` as a path that exists, is a folder (else a file) and can be read: the one line why not, else the
+    path."""
+    path = Path(text)
+    problem = _stat_problem(path)
+    if problem:
+        raise argparse.ArgumentTypeError(f"{text}: {problem}")
+    if not path.exists():
+        raise argparse.ArgumentTypeError(f"{text}: no such {'folder' if folder else 'file'}")
+    if path.is_dir() != folder:
+        raise argparse.ArgumentTypeError(f"{text}: is a {'file' if folder else 'directory'}, not a {what}")
+    if not os.access(path, os.R_OK | (os.X_OK if folder else 0)):
+        raise argparse.ArgumentTypeError(f"{text}: not readable (permission denied)")
+    return path
+
+
 class InputFile(Kind):
     """An existing, readable file; ``check(path)`` may look inside it (raising ValueError or OSError with the
     reason)."""
@@ -50,16 +66,7 @@ class InputFile(Kind):
         self.accepted = f"an existing, readable {what}"
 
     def __call__(self, text: str) -> Any:
-        path = Path(text)
-        problem = _stat_problem(path)
-        if problem:
-            raise argparse.ArgumentTypeError(f"{text}: {problem}")
-        if path.is_dir():
-            raise argparse.ArgumentTypeError(f"{text}: is a directory, not a {self.what}")
-        if not path.exists():
-            raise argparse.ArgumentTypeError(f"{text}: no such file")
-        if not os.access(path, os.R_OK):
-            raise argparse.ArgumentTypeError(f"{text}: not readable (permission denied)")
+        _readable(text, False, self.what)
         if self.check is None:
             return text
         try:
@@ -81,16 +88,7 @@ class InputFolder(Kind):
     def __call__(self, text: str) -> str:
         if not str(text).strip():
             raise self.refuse(text)
-        path = Path(text)
-        problem = _stat_problem(path)
-        if problem:
-            raise argparse.ArgumentTypeError(f"{text}: {problem}")
-        if not path.exists():
-            raise argparse.ArgumentTypeError(f"{text}: no such folder")
-        if not path.is_dir():
-            raise argparse.ArgumentTypeError(f"{text}: is a file, not a {self.what}")
-        if not os.access(path, os.R_OK | os.X_OK):
-            raise argparse.ArgumentTypeError(f"{text}: not readable (permission denied)")
+        path = _readable(text, True, self.what)
         if self.holds and not (path / self.holds).is_file():
             raise argparse.ArgumentTypeError(f"{text}: holds no {self.holds}; must be {self.accepted}")
         return text
