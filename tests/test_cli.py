@@ -12,6 +12,7 @@ commands committed in results/*/RUN.md still parsing.
 """
 
 import argparse
+import ast
 import functools
 import os
 import re
@@ -20,12 +21,14 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from helpers.programs import BENCHMARKS, BIN, ENTRY_POINTS, PROGRAMS, ROOT, command_of, main_of
+from helpers.programs import BENCHMARKS, BIN, ENTRY_POINTS, MODULE_PROGRAMS, PROGRAMS, ROOT, command_of, main_of
 
 from veragmil_suite.utils import cli
 
 # programs that run robomimic's own scripts: robomimic's option names, shown with dashes, its underscores accepted
 ROBOMIMIC_PROGRAMS = {p for p, target in ENTRY_POINTS.items() if target.startswith("veragmil_suite.scripts.robomimic")}
+# python -m MODULE: the module's name, as the shell splits the command, names its program
+MODULE_TOKENS = {program.split()[-1]: program for program in MODULE_PROGRAMS}
 # one name, two upstream meanings: robosuite's and robomimic's tools both use these words, for different things
 UPSTREAM_HOMONYMS = {
     "--config": "veragmil-collect: robosuite's env configuration; veragmil-train: robomimic's config file",
@@ -121,6 +124,18 @@ def bad_values(kind: cli.Kind, paths: dict[str, str]) -> list[tuple[str, str]]:
         return [("unknown robot", "Nonexistent"), ("two arms", "Baxter")]
     if isinstance(kind, cli.Controller):
         return [("unknown", "BOGUS"), ("not OSC", "IK_POSE"), ("missing file", paths["missing_file"][:-5] + ".json")]
+    if isinstance(kind, cli.PhysicsTimestep):
+        return [("wrong type", "short"), ("a zero fraction", "1/0"), ("negative", "-1/240"), ("not a divisor", "1/250")]
+    if isinstance(kind, cli.SolverOption):
+        return [("no =", "iterations"), ("unknown key", "bogus=3"), ("not positive", "iterations=0")] + [
+            ("unknown word", "solver=Fast")
+        ]
+    if isinstance(kind, cli.Url):
+        return [
+            ("no scheme", "localhost:8765"),
+            ("another scheme", "ftp://localhost/"),
+            ("bad port", "http://h:99999/"),
+        ]
     if isinstance(kind, cli.Port):
         return [("wrong type", "http"), ("below range", "-1"), ("above range", "65536")]
     if isinstance(kind, cli.Host):
@@ -216,13 +231,46 @@ def test_every_program_is_built_by_cli_and_every_value_has_a_kind(program):
     assert not untyped, f"{program}: options without a kind of value (veragmil_suite.utils.cli): {untyped}"
 
 
+# modules with a __main__ block that are not programs a user gives options to: processes the package starts itself
+# with arguments of its own making, and a setup step that takes none
+NOT_USER_PROGRAMS = {
+    "veragmil_suite.devices.vr.render": "the VR server's renderer process (its config from the server)",
+    "veragmil_suite.study.logged_run": "a study piece's process (its call from the study)",
+    "veragmil_suite.private_macros": "writes robosuite's and robomimic's private macros; no options",
+}
+
+
+def _runnable_modules() -> set[str]:
+    """The package's modules that python -m runs: those with a module-level __main__ block, and each package with a
+    __main__.py."""
+    found = set()
+    for path in sorted((ROOT / "veragmil_suite").rglob("*.py")):
+        module = ".".join(path.relative_to(ROOT).with_suffix("").parts)
+        if path.name == "__main__.py":
+            found.add(module.rsplit(".", 1)[0])
+            continue
+        for node in ast.parse(path.read_text()).body:
+            test = node.test if isinstance(node, ast.If) else None
+            if isinstance(test, ast.Compare) and isinstance(test.left, ast.Name) and test.left.id == "__name__":
+                found.add(module)
+    return found
+
+
+def test_every_module_run_as_a_program_is_walked_here():
+    """A program added tomorrow as python -m MODULE is walked by the tests above the day it is added."""
+    entry_modules = {target.split(":")[0] for target in ENTRY_POINTS.values()}
+    walked = entry_modules | set(MODULE_TOKENS) | set(NOT_USER_PROGRAMS)
+    assert "veragmil_suite.calibration" in _runnable_modules()
+    assert _runnable_modules() <= walked, f"not walked: {sorted(_runnable_modules() - walked)} (add to MODULE_PROGRAMS)"
+
+
 def test_a_sample_of_each_program_refuses_as_a_real_process(paths):
     """A generated case of one program per module, as the console script in its own process: exit 2, one line, no
     traceback (robosuite's and robomimic's import warnings aside). The programs of a module share their entry
     point's code, which the in-process table above runs for each."""
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     sample = {ENTRY_POINTS[p].split(":")[0]: p for p in sorted(ENTRY_POINTS, reverse=True)}
-    sample.update({program: program for program in BENCHMARKS})
+    sample.update({program: program for program in [*BENCHMARKS, *MODULE_PROGRAMS]})
     running = []
     for program in sorted(sample.values()):
         action = next(a for a in value_actions(parser_of(program)) if a.option_strings)
@@ -372,7 +420,8 @@ def committed_commands() -> list[tuple[str, str, list[str]]]:
                 lexer.commenters = "#"
                 tokens = list(lexer)
                 for i, token in enumerate(tokens):
-                    if token not in ENTRY_POINTS and token not in BENCHMARKS:
+                    token = MODULE_TOKENS.get(token, token)
+                    if token not in ENTRY_POINTS and token not in BENCHMARKS and token not in MODULE_PROGRAMS:
                         continue
                     words = []
                     for word in tokens[i + 1 :]:

@@ -24,15 +24,17 @@ import numpy as np
 
 from veragmil_suite.calibration.lifting_cylinder import lifting_cylinder
 from veragmil_suite.calibration.spoonful import dish_volume_m3, level_spoonful_g
-from veragmil_suite.models.foods import FOODS, PHYSICS, FoodSpec, Measured
+from veragmil_suite.models.foods import FOODS, FoodSpec, Measured
 from veragmil_suite.models.grains import GrainPile
 from veragmil_suite.models.spoon_gripper import SPOON_SHAPE
+from veragmil_suite.utils import cli
 from veragmil_suite.utils.whole_files import written_whole
 
 # How close a simulated value must come to the published one (issue #32): degrees for the angle, a fraction of
 # the value for the others, applied to the published range's ends.
 TOLERANCES = {"angle_of_repose_deg": 5.0, "bulk_density_g_cm3": 0.15, "grain_mass_mg": 0.25, "spoonful_g": 0.30}
 QUICK_TUBE_SCALE = 0.7  # --quick's tube, as a fraction of the standard one's size (a third of the grains)
+TUBE_SCALES = (0.2, 2.0)  # the tube sizes --tube-scale takes: from a few dozen grains to 8x the standard fill
 
 
 @dataclass(frozen=True)
@@ -171,27 +173,26 @@ def format_table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="python -m veragmil_suite.calibration", description=__doc__, formatter_class=argparse.RawTextHelpFormatter
-    )
-    parser.add_argument("--foods", nargs="+", choices=sorted(FOODS), default=sorted(FOODS), metavar="FOOD")
-    parser.add_argument("--physics", nargs="+", choices=PHYSICS, default=["calibrated"])
+def build_parser() -> cli.Parser:
+    parser = cli.Parser("python -m veragmil_suite.calibration", description=__doc__)
+    parser.add_argument("--foods", type=cli.ListOf(cli.food), default=list(FOODS), help="foods measured")
+    parser.add_argument("--physics", type=cli.ListOf(cli.physics), default=["calibrated"], help="physics measured")
     parser.add_argument("--quick", action="store_true", help="a smaller tube fill, no expert episodes (the tests')")
-    parser.add_argument("--tube-scale", type=float, help="the lifting cylinder's size against the standard tube")
-    parser.add_argument("--expert-episodes", type=int, default=3, help="expert episodes per food (0: none)")
-    parser.add_argument("--json", help="write every measurement here")
+    parser.add_argument(
+        "--tube-scale",
+        type=cli.Real(*TUBE_SCALES),
+        help="the lifting cylinder's size against the standard tube",
+    )
+    parser.add_argument(
+        "--expert-episodes", type=cli.count_or_zero, default=3, help="expert episodes per food (0: none)"
+    )
+    parser.add_argument("--json", type=cli.OutputFile("JSON file"), help="write every measurement here")
     return parser
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    if args.expert_episodes < 0:
-        print(f"--expert-episodes must be a count of at least 0, got {args.expert_episodes}", file=sys.stderr)
-        return 2
-    if args.tube_scale is not None and not 0.2 <= args.tube_scale <= 2.0:
-        print(f"--tube-scale must lie in 0.2-2.0, got {args.tube_scale}", file=sys.stderr)
-        return 2
+@cli.command(build_parser)
+def main(args: argparse.Namespace) -> int:
+    """Every food of --foods on every --physics: the table, the foods' missing references, and --json."""
     seeds = None if args.quick or args.expert_episodes == 0 else range(args.expert_episodes)
     rows = []
     for physics in args.physics:

@@ -25,9 +25,10 @@ import numpy as np
 
 from veragmil_suite.environments.settling import pile_model_xml, simulate_settling
 from veragmil_suite.models.bowl import Bowl
-from veragmil_suite.models.foods import FOODS, PHYSICS
+from veragmil_suite.models.foods import FOODS
 from veragmil_suite.models.grains import GrainPile
 from veragmil_suite.models.scoop_task import GRAIN_SLEEP_TOLERANCE, PHYSICS_TIMESTEP_S, pile_solver_options
+from veragmil_suite.utils import cli
 from veragmil_suite.utils.whole_files import append_line, json_lines
 
 CREEP_LIMIT_M = 5e-4  # a grain of a pile at rest moves less than this over the watch
@@ -80,28 +81,35 @@ def settle_and_watch(
     }
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m veragmil_suite.calibration.stability", description=__doc__)
-    parser.add_argument("--foods", nargs="+", choices=sorted(FOODS), default=sorted(FOODS), metavar="FOOD")
-    parser.add_argument("--physics", choices=PHYSICS, default="calibrated")
-    parser.add_argument("--settles", type=int, default=100, help="piles per food")
+def build_parser() -> cli.Parser:
+    parser = cli.Parser("python -m veragmil_suite.calibration.stability", description=__doc__)
+    parser.add_argument("--foods", type=cli.ListOf(cli.food), default=list(FOODS), help="foods whose piles are watched")
+    parser.add_argument("--physics", type=cli.physics, default="calibrated", help="the grains' physics")
+    parser.add_argument("--settles", type=cli.count, default=100, help="piles per food")
     parser.add_argument(
         "--sleep",
-        choices=("task", "off"),
+        type=cli.Choice("sleeping", ("task", "off")),
         default="task",
         help=f"watch with the task's island sleeping (sleep_tolerance {GRAIN_SLEEP_TOLERANCE}) or with sleeping off",
     )
-    parser.add_argument("--jsonl", type=Path, required=True, help="rows are appended here; a rerun resumes")
-    args = parser.parse_args(argv)
-    if args.settles < 1:
-        print(f"--settles must be a count of at least 1, got {args.settles}", file=sys.stderr)
-        return 2
+    parser.add_argument(
+        "--jsonl",
+        type=cli.OutputFile("JSON-lines file"),
+        required=True,
+        help="rows are appended here; a rerun resumes",
+    )
+    return parser
+
+
+@cli.command(build_parser)
+def main(args: argparse.Namespace) -> int:
+    """Settles and watches the piles --jsonl does not hold yet, then counts each food's still piles."""
+    args.jsonl = Path(args.jsonl)
     tolerance = GRAIN_SLEEP_TOLERANCE if args.sleep == "task" else None
     done = set()
     if args.jsonl.exists():
         for r in json_lines(args.jsonl):
             done.add((r["food"], r["physics"], r["seed"], r.get("sleep_tolerance")))
-    args.jsonl.parent.mkdir(parents=True, exist_ok=True)
     for food in args.foods:
         for seed in range(args.settles):
             if (food, args.physics, seed, tolerance) in done:

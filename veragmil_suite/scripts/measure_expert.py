@@ -4,8 +4,8 @@ veragmil-collect records them (restart from reset_to, observations of the record
 Episode s is a fresh environment made with seed s, so its bowl is not that of veragmil-collect's attempt of seed s
 (an environment reset with that seed).
 
-    python -m veragmil_suite.scripts.measure_expert --foods rice buckwheat barley pasta --episodes 10 --workers 2
-    python -m veragmil_suite.scripts.measure_expert --robot G1FixedLowerBody --episodes 10 --workers 1
+    python -m veragmil_suite.scripts.measure_expert --foods rice buckwheat barley pasta --episodes 10 --processes 2
+    python -m veragmil_suite.scripts.measure_expert --robots G1FixedLowerBody --episodes 10 --processes 1
     python -m veragmil_suite.scripts.measure_expert --sleep-tolerance none --json before.json
     python -m veragmil_suite.scripts.measure_expert --compare before.json after.json
     python -m veragmil_suite.scripts.measure_expert --solver iterations=20 --json cg20.json
@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import importlib.metadata
-import inspect
 import json
 import os
 import sys
@@ -26,17 +25,16 @@ import numpy as np
 import robosuite
 
 from veragmil_suite.data.recording import EpisodeRecorder, episode_metrics
-from veragmil_suite.devices.expert import PROFILES, ScriptedScooper
+from veragmil_suite.devices.expert import ScriptedScooper
 from veragmil_suite.environments.episode import SUCCESS_HOLD_S, run_until_done
-from veragmil_suite.environments.scoop import ScoopGranular
-from veragmil_suite.models.foods import FOODS, TRAINING_FOODS
+from veragmil_suite.models.foods import TRAINING_FOODS
 from veragmil_suite.models.scoop_task import (
     GRAIN_SLEEP_TOLERANCE,
     PHYSICS_TIMESTEP_S,
-    check_physics_timestep,
-    check_sleep_tolerance,
 )
+from veragmil_suite.utils import cli
 from veragmil_suite.utils.distributed import run_pieces
+from veragmil_suite.utils.numbers import seed_span_problem
 from veragmil_suite.utils.rendering import use_headless_rendering
 from veragmil_suite.utils.whole_files import written_whole
 
@@ -93,58 +91,12 @@ def _episode_piece(context: tuple[str, str, dict], piece: tuple[str, int]) -> di
     return run_expert_episode(food, seed, profile, env_kwargs=env_kwargs, robot=robot)
 
 
-# MuJoCo <option> attributes --solver may override: the solver's effort (positive numbers) and its kind (words)
-SOLVER_KEYS = ("iterations", "ls_iterations", "tolerance", "ls_tolerance")
-SOLVER_CHOICES = {"solver": ("CG", "Newton", "PGS"), "cone": ("elliptic", "pyramidal")}
-
-
-def _solver_option(text: str) -> tuple[str, str]:
-    """argparse type of --solver: KEY=NUMBER with KEY one of SOLVER_KEYS, or KEY=WORD from SOLVER_CHOICES."""
-    key, _, value = text.partition("=")
-    if key in SOLVER_CHOICES:
-        if value not in SOLVER_CHOICES[key]:
-            raise argparse.ArgumentTypeError(f"{text!r}: {key} takes one of {', '.join(SOLVER_CHOICES[key])}")
-        return key, value
-    try:
-        number = float(value)
-    except ValueError:
-        number = -1.0
-    if key not in SOLVER_KEYS or not number > 0:
-        raise argparse.ArgumentTypeError(
-            f"{text!r}: expected KEY=NUMBER with KEY one of {', '.join(SOLVER_KEYS)} and a positive NUMBER, or "
-            + ", ".join(f"{k}={'|'.join(v)}" for k, v in SOLVER_CHOICES.items())
-        )
-    return key, value
-
-
-def _physics_timestep(text: str) -> float:
-    """argparse type of --physics-timestep: seconds, as a number (0.00625) or a fraction (1/160)."""
-    numerator, slash, denominator = text.partition("/")
-    try:
-        value = float(numerator) / float(denominator) if slash else float(text)
-    except (ValueError, ZeroDivisionError):
-        value = -1.0
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"{text!r}: expected seconds as a positive number or fraction, e.g. 1/240")
-    return value
-
-
 def _label(run: dict) -> str:
     """A --json run's name in --compare: its MuJoCo, sleep tolerance, physics step and solver overrides."""
     solver = "".join(f", {k}={v}" for k, v in (run.get("solver") or {}).items())
     # a run that names no physics step ran at the task's default, 1/240 s
     step = f", step 1/{1 / run.get('physics_timestep_s', PHYSICS_TIMESTEP_S):.0f} s"
     return f"mujoco {run.get('mujoco', '?')}, sleep {run.get('sleep_tolerance') or 'off'}{step}{solver}"
-
-
-def _sleep_tolerance(text: str) -> float | None:
-    """argparse type of --sleep-tolerance: 'none' or a positive float."""
-    try:
-        return check_sleep_tolerance(None if text.lower() == "none" else float(text))
-    except ValueError as e:
-        raise argparse.ArgumentTypeError(
-            f"{text!r}: accepted values are 'none' or a positive number (e.g. 1e-3)"
-        ) from e
 
 
 def summarize(results: list[dict]) -> dict:
@@ -214,61 +166,81 @@ def compare(paths: list[str]) -> str:
     return "\n".join(lines)
 
 
-def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m veragmil_suite.scripts.measure_expert", description=__doc__)
-    p.add_argument("--foods", nargs="+", choices=list(FOODS), default=list(TRAINING_FOODS), metavar="FOOD")
-    p.add_argument("--episodes", type=int, default=10, help="episodes per food (seeds first-seed...)")
-    p.add_argument("--first-seed", type=int, default=0)
-    p.add_argument("--profile", choices=sorted(PROFILES), default="expert")
-    p.add_argument(
-        "--robot", default="XArm7", help="robosuite robot (G1FixedLowerBody: see veragmil_suite.models.humanoid)"
+def _measured_run(path: str) -> None:
+    """Refuses a file --compare cannot read: not JSON, or without the episodes --json writes."""
+    with open(path) as f:
+        run = json.load(f)
+    if not isinstance(run, dict) or not isinstance(run.get("episodes"), list):
+        raise ValueError("no list of episodes, as --json writes them")
+
+
+def build_parser() -> cli.Parser:
+    parser = cli.Parser("python -m veragmil_suite.scripts.measure_expert", description=__doc__)
+    parser.add_argument("--foods", type=cli.ListOf(cli.food), default=list(TRAINING_FOODS), help="foods measured")
+    parser.add_argument("--episodes", type=cli.count, default=10, help="episodes per food (seeds SEED...)")
+    parser.add_argument("--seed", aliases=["--first-seed"], type=cli.seed, default=0, help="the first episode's seed")
+    parser.add_argument("--profile", type=cli.profile, default="expert", help="the scripted operator's profile")
+    parser.add_argument(
+        "--robots",
+        aliases=["--robot"],
+        type=cli.robot,
+        default="XArm7",
+        help="robosuite robot (G1FixedLowerBody: see veragmil_suite.models.humanoid)",
     )
-    p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
-    p.add_argument(
+    parser.add_argument(
+        "--processes", aliases=["--workers"], type=cli.count, default=os.cpu_count() or 1, help="worker processes"
+    )
+    parser.add_argument(
         "--sleep-tolerance",
-        type=_sleep_tolerance,
+        type=cli.Real(0.0, open_low=True, none="none"),
         default=GRAIN_SLEEP_TOLERANCE,
-        help=f"MuJoCo's sleep_tolerance for the grains, or 'none': sleeping off (default {GRAIN_SLEEP_TOLERANCE})",
+        help="MuJoCo's sleep_tolerance for the grains, or none: sleeping off",
     )
-    p.add_argument(
+    parser.add_argument(
         "--solver",
-        type=_solver_option,
+        type=cli.solver_option,
         action="append",
         default=[],
-        metavar="KEY=NUMBER",
-        help=f"override a MuJoCo solver option of the task (repeat for more; keys: {', '.join(SOLVER_KEYS)}, "
-        + ", ".join(SOLVER_CHOICES)
-        + ")",
+        metavar="KEY=VALUE",
+        help=f"override a MuJoCo solver option of the task (repeat for more): {cli.solver_option.accepted}",
     )
-    p.add_argument(
+    parser.add_argument(
         "--physics-timestep",
-        type=_physics_timestep,
+        type=cli.physics_timestep,
         default=PHYSICS_TIMESTEP_S,
         metavar="SECONDS",
         help="the task's physics step, e.g. 1/200 (default 1/240; the pile is settled at it)",
     )
-    p.add_argument("--json", default=None, help="also write every episode and the summary to this file")
-    p.add_argument("--compare", nargs="+", metavar="JSON", help="print earlier --json runs side by side, run nothing")
-    args = p.parse_args(argv)
+    parser.add_argument(
+        "--json", type=cli.OutputFile("JSON file"), help="also write every episode and the summary to this file"
+    )
+    parser.add_argument(
+        "--compare",
+        nargs="+",
+        type=cli.InputFile("--json file of this program", check=_measured_run),
+        metavar="JSON",
+        help="print earlier --json runs side by side, run nothing",
+    )
+    return parser
+
+
+@cli.command(build_parser)
+def main(args: argparse.Namespace) -> int:
+    """The episodes of every food, a line each, then the summary table (and --json); or --compare's table."""
     if args.compare:
-        missing = [path for path in args.compare if not os.path.isfile(path)]
-        if missing:
-            p.error(f"--compare: no such file {', '.join(missing)} (files written by --json)")
         print(compare(args.compare))
         return 0
-    try:
-        control_freq = inspect.signature(ScoopGranular).parameters["control_freq"].default
-        check_physics_timestep(args.physics_timestep, control_freq)
-    except ValueError as e:
-        p.error(f"--physics-timestep: {e}")
-    jobs = [(f, s) for s in range(args.first_seed, args.first_seed + args.episodes) for f in args.foods]
+    problem = seed_span_problem(args.seed, args.episodes)
+    if problem:
+        raise cli.UsageError(problem)
+    jobs = [(f, s) for s in range(args.seed, args.seed + args.episodes) for f in args.foods]
     results = []
     solver = dict(args.solver)
     env_kwargs = dict(sleep_tolerance=args.sleep_tolerance, physics_solver_options=solver or None)
     if args.physics_timestep != PHYSICS_TIMESTEP_S:
         env_kwargs["physics_timestep_s"] = args.physics_timestep
-    context = (args.profile, args.robot, env_kwargs)
-    pieces = run_pieces(_episode_piece, jobs, context=context, processes=args.workers, ordered=True)
+    context = (args.profile, args.robots, env_kwargs)
+    pieces = run_pieces(_episode_piece, jobs, context=context, processes=args.processes, ordered=True)
     for _, r in pieces:
         results.append(r)
         print(
@@ -280,7 +252,7 @@ def main(argv: list[str] | None = None) -> int:
         )
     summary = summarize(results)
     print(
-        f"\n{args.robot}, profile {args.profile}, {args.episodes} episodes per food, sleep {args.sleep_tolerance}, "
+        f"\n{args.robots}, profile {args.profile}, {args.episodes} episodes per food, sleep {args.sleep_tolerance}, "
         f"physics step {args.physics_timestep:.6g} s" + "".join(f", {k}={v}" for k, v in solver.items())
     )
     print("food        success  spilled(pieces)  spilled(cm3)  spill%      in spoon  time(s)")
@@ -296,7 +268,7 @@ def main(argv: list[str] | None = None) -> int:
         with written_whole(args.json) as partial, open(partial, "w") as f:
             json.dump(
                 dict(
-                    robot=args.robot,
+                    robot=args.robots,
                     profile=args.profile,
                     sleep_tolerance=args.sleep_tolerance,
                     solver=solver,

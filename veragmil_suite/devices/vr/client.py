@@ -13,6 +13,7 @@ import argparse
 import asyncio
 import json
 import math
+import sys
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -22,6 +23,7 @@ import aiohttp
 
 from veragmil_suite.devices.vr.protocol import unpack_frame
 from veragmil_suite.devices.vr.server_options import CLOSE_FINISHED
+from veragmil_suite.utils import cli
 
 if TYPE_CHECKING:
     from concurrent.futures import Future
@@ -207,16 +209,30 @@ class Client:
             self._loop.close()  # else the garbage collector closes it, by then perhaps after its own sockets
 
 
-def main(argv: list[str] | None = None) -> None:
-    p = argparse.ArgumentParser(description="Drive a VR server like the headset's page would, without a headset.")
-    p.add_argument("url", help="the page's address, e.g. http://localhost:8765/")
-    p.add_argument("--token", default=None, help="pairing token (servers bound beyond localhost)")
-    p.add_argument("--seconds", type=float, default=5.0)
-    p.add_argument("--radius", type=float, default=0.05, help="circle radius, metres")
-    args = p.parse_args(argv)
-    client = Client(args.url, token=args.token).connect()
+def build_parser() -> cli.Parser:
+    parser = cli.Parser(
+        "python -m veragmil_suite.devices.vr.client",
+        description="Drive a VR server like the headset's page would, without a headset.",
+    )
+    parser.add_argument("url", type=cli.url, help="the page's address, e.g. http://localhost:8765/")
+    parser.add_argument("--token", type=cli.text, help="pairing token (servers bound beyond localhost)")
+    parser.add_argument("--seconds", type=cli.positive, default=5.0, help="how long the hand draws its circle")
+    parser.add_argument("--radius", type=cli.positive, default=0.05, help="circle radius, metres")
+    return parser
+
+
+@cli.command(build_parser)
+def main(args: argparse.Namespace) -> int:
+    """Connects, draws a circle with the right hand holding the grip, and says what the server streamed."""
+    try:
+        client = Client(args.url, token=args.token).connect()
+    except (aiohttp.ClientError, OSError) as error:
+        raise cli.UsageError(f"{args.url}: no VR server answers there ({cli.one_line(error)})") from None
     if client.welcome is None:
-        raise SystemExit(f"no welcome from {args.url} (close code {client.close_code})")
+        client.close()
+        raise cli.UsageError(
+            f"{args.url}: the server sent no welcome (close code {client.close_code}); a wrong --token?"
+        )
     print("welcome:", json.dumps(client.welcome["config"]))
 
     def circle(t: float) -> dict:
@@ -231,7 +247,8 @@ def main(argv: list[str] | None = None) -> None:
     if client.statuses:
         print("status:", client.statuses[-1]["text"])
     client.close()
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -10,6 +10,7 @@ import inspect
 import json
 import math
 import socket
+import urllib.parse
 from pathlib import Path
 from typing import Any
 
@@ -97,8 +98,25 @@ class Host(Kind):
         return text
 
 
+class Url(Kind):
+    """A web page's address: http or https, a host, an optional port (the VR server's page)."""
+
+    accepted = "a page's address, http(s)://HOST[:PORT]/"
+
+    def __call__(self, text: str) -> str:
+        try:
+            parts = urllib.parse.urlsplit(str(text).strip())
+            parts.port  # noqa: B018  (raises ValueError on a port out of range or not a number)
+        except ValueError:
+            raise self.refuse(text) from None
+        if parts.scheme not in ("http", "https") or not parts.hostname:
+            raise self.refuse(text)
+        return text
+
+
 port = Port()
 host = Host()
+url = Url()
 
 
 def check_port_free(host_name: str, number: int, option: str = "--vr-port") -> None:

@@ -11,6 +11,7 @@ from typing import Any
 
 from robosuite.models.robots import XArm7
 
+from veragmil_suite.controllers.scoop_config import ROBOSUITE_CONTROL_FREQ_HZ
 from veragmil_suite.devices.expert import PROFILES
 from veragmil_suite.environments.arguments import MAX_IMAGE_SIDE_PX, MIN_CONTROL_FREQ_HZ
 from veragmil_suite.learning import robomimic_compat
@@ -57,7 +58,8 @@ class Integer(Kind):
 
 
 class Real(Kind):
-    """A finite number in [low, high] (an end left out where ``open_low`` / ``open_high``)."""
+    """A finite number in [low, high] (an end left out where ``open_low`` / ``open_high``), or the word ``none``
+    stands for, where given: None (a setting switched off)."""
 
     def __init__(
         self,
@@ -66,15 +68,19 @@ class Real(Kind):
         open_low: bool = False,
         open_high: bool = False,
         accepted: str | None = None,
+        none: str | None = None,
     ):
         self.low, self.high, self.open_low, self.open_high = low, high, open_low, open_high
+        self.none = none
         if accepted is None:
             lo = "" if low is None else f"{'(' if open_low else '['}{low:g}"
             hi = "" if high is None else f"{high:g}{')' if open_high else ']'}"
-            accepted = f"a finite number in {lo or '(-inf'}, {hi or 'inf)'}"
+            accepted = f"a finite number in {lo or '(-inf'}, {hi or 'inf)'}" + (f", or {none}" if none else "")
         self.accepted = accepted
 
-    def __call__(self, text: str) -> float:
+    def __call__(self, text: str) -> float | None:
+        if self.none is not None and str(text).strip().lower() == self.none:
+            return None
         try:
             value = float(str(text).strip())
         except ValueError:
@@ -225,6 +231,61 @@ class ControlFreq(Kind):
 
 
 control_freq = ControlFreq()
+
+
+class PhysicsTimestep(Kind):
+    """The task's physics step in seconds, as a number (0.00625) or a fraction (1/160), that divides the control
+    period of the task's default control rate (robosuite's 20 Hz) into whole steps."""
+
+    accepted = "seconds as a positive number or fraction (e.g. 1/240) that divides the control period"
+
+    def __call__(self, text: str) -> float:
+        numerator, slash, denominator = str(text).strip().partition("/")
+        try:
+            value = float(numerator) / float(denominator) if slash else float(numerator)
+        except (ValueError, ZeroDivisionError):
+            raise self.refuse(text) from None
+        if not 0 < value < math.inf:
+            raise self.refuse(text)
+        try:
+            check_physics_timestep(value, ROBOSUITE_CONTROL_FREQ_HZ)
+        except ValueError as error:
+            raise argparse.ArgumentTypeError(str(error)) from None
+        return value
+
+
+physics_timestep = PhysicsTimestep()
+
+
+class SolverOption(Kind):
+    """``KEY=VALUE``, one MuJoCo <option> attribute of the task's pile: the solver's effort (a positive number) or
+    its kind (a word), as a (key, value) pair."""
+
+    NUMBERS = ("iterations", "ls_iterations", "tolerance", "ls_tolerance")
+    WORDS = {"solver": ("CG", "Newton", "PGS"), "cone": ("elliptic", "pyramidal")}
+
+    @property
+    def accepted(self) -> str:
+        words = ", ".join(f"{key}={'|'.join(values)}" for key, values in self.WORDS.items())
+        return f"KEY=NUMBER with KEY one of {', '.join(self.NUMBERS)} and a positive NUMBER, or {words}"
+
+    def __call__(self, text: str) -> tuple[str, str]:
+        key, _, value = str(text).partition("=")
+        key, value = key.strip(), value.strip()
+        if key in self.WORDS:
+            if value not in self.WORDS[key]:
+                raise self.refuse(text)
+            return key, value
+        try:
+            number = float(value)
+        except ValueError:
+            number = math.nan
+        if key not in self.NUMBERS or not 0 < number < math.inf:
+            raise self.refuse(text)
+        return key, value
+
+
+solver_option = SolverOption()
 # a cap on control steps per second: below the slowest control rate a step would wait longer than a control period
 frame_rate = Real(MIN_CONTROL_FREQ_HZ, accepted=f"at least {MIN_CONTROL_FREQ_HZ:g} control step per second")
 
