@@ -337,6 +337,10 @@ OUTPUT_CASES = [
      "is the study's own evaluation folder"),
     ("veragmil-publish-results", ["{d}/study", "--output-dir", "{d}/published", "--command", "c"],
      "{d}/published/RUN.md exists (use --force to overwrite it)"),
+    ("python -m veragmil_suite.calibration", ["--quick", "--foods", "peas", "--json", "{d}/old.json"],
+     "{d}/old.json exists (use --force to overwrite it)"),
+    ("python -m veragmil_suite.scripts.measure_expert", ["--episodes", "1", "--json", "{d}/old.json"],
+     "{d}/old.json exists (use --force to overwrite it)"),
 ]  # fmt: skip
 
 
@@ -349,6 +353,7 @@ def outputs_folder(tmp_path_factory) -> Path:
     (folder / "link.hdf5").hardlink_to(folder / "data.hdf5")
     shutil.copy(SAMPLE, folder / "old.hdf5")
     (folder / "old.mp4").write_bytes(b"an earlier video")
+    (folder / "old.json").write_text('{"what": "an earlier measurement"}')
     for where in ("pool", "study/eval"):
         (folder / where).mkdir(parents=True)
         shutil.copy(EVALUATION, folder / where / "results.json")

@@ -187,12 +187,14 @@ def build_parser() -> cli.Parser:
         "--expert-episodes", type=cli.count_or_zero, default=3, help="expert episodes per food (0: none)"
     )
     parser.add_argument("--json", type=cli.OutputFile("JSON file"), help="write every measurement here")
+    parser.add_argument("--force", action="store_true", help="overwrite the --json file if it exists")
     return parser
 
 
 @cli.command(build_parser)
 def main(args: argparse.Namespace) -> int:
     """Every food of --foods on every --physics: the table, the foods' missing references, and --json."""
+    cli.refuse_existing(args.json, args.force)
     seeds = None if args.quick or args.expert_episodes == 0 else range(args.expert_episodes)
     rows = []
     for physics in args.physics:

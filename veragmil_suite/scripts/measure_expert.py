@@ -214,6 +214,7 @@ def build_parser() -> cli.Parser:
     parser.add_argument(
         "--json", type=cli.OutputFile("JSON file"), help="also write every episode and the summary to this file"
     )
+    parser.add_argument("--force", action="store_true", help="overwrite the --json file if it exists")
     parser.add_argument(
         "--compare",
         nargs="+",
@@ -230,6 +231,7 @@ def main(args: argparse.Namespace) -> int:
     if args.compare:
         print(compare(args.compare))
         return 0
+    cli.refuse_existing(args.json, args.force)
     problem = seed_span_problem(args.seed, args.episodes)
     if problem:
         raise cli.UsageError(problem)
