@@ -1,7 +1,10 @@
 # Sourced by the tables' pool.sh records (here, ../grid_mended_tables/ and ../grid_size_tables/), run from the
 # repository root. Each record fills the arrays A (agents) and P (pairs) and calls pool_tables with its folder's name.
-#   add FOLDER MODEL  appends to A an --agent argument of veragmil-pool-results for every agent of
-#                     results/FOLDER/results.json named MODEL or "MODEL seed N", under its own name
+#   add FOLDER MODEL [SEED]
+#                     appends to A an --agent argument of veragmil-pool-results for every agent of
+#                     results/FOLDER/results.json named MODEL or "MODEL seed N", under its own name; with SEED, an
+#                     agent named MODEL alone (a study of one training seed names no seed) is named "MODEL seed SEED",
+#                     so that it pools and pairs with that seed of the other models
 #   pool_tables NAME  pools A with the pairs P into runs/NAME/eval, shapes the pooled tables like the paper's
 #                     (results/NAME/paper_tables.md) and copies the pooled tables into results/NAME/
 export PATH=$PWD/.venv/bin:$PATH
@@ -9,9 +12,11 @@ A=()
 P=()
 
 add() {
-  local file="results/$1/results.json" agent
+  local file="results/$1/results.json" agent name
   while IFS= read -r agent; do
-    A+=(--agent "$agent=$file:$agent")
+    name=$agent
+    if [ -n "${3:-}" ] && [ "$agent" = "$2" ]; then name="$agent seed $3"; fi
+    A+=(--agent "$name=$file:$agent")
   done < <(python - "$file" "$2" <<'PY'
 import json, re, sys
 path, model = sys.argv[1:]
