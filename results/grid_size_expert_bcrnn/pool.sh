@@ -1,22 +1,22 @@
 #!/bin/bash
-# Pairs expert BC-RNN `no-load-size` seed 1 (this folder), bowl by bowl, with expert BC and BCQ on the same
+# Pairs expert BC-RNN `no-load-size` seeds 1 and 2 (this folder), bowl by bowl, with expert BC and BCQ on the same
 # observations and demos (../grid_size_expert_bc/, ../grid_size_expert_bcq/: the same seeds' recording, the same Intel
-# hosts' piles) and with the expert operator (../grid_mended_operators/): compare/paired.md. Reads only committed
-# files; run from the repository root.
+# hosts' piles), seed by seed, and with the expert operator (../grid_mended_operators/): compare/paired.md. Reads only
+# committed files; run from the repository root.
 set -euo pipefail
 export PATH=$PWD/.venv/bin:$PATH
-R="expert BC-RNN no-load-size obs"
-B="expert BC no-load-size obs seed"
-Q="expert BCQ no-load-size obs seed"
+A=()
+for seed in 1 2; do
+  A+=(--agent "BC-RNN seed $seed=results/grid_size_expert_bcrnn/results.json:expert BC-RNN no-load-size obs seed $seed")
+done
+for seed in 1 2 3; do
+  A+=(--agent "BC seed $seed=results/grid_size_expert_bc/results.json:expert BC no-load-size obs seed $seed")
+  A+=(--agent "BCQ seed $seed=results/grid_size_expert_bcq/results.json:expert BCQ no-load-size obs seed $seed")
+done
+A+=(--agent "expert operator=results/grid_mended_operators/results.json:expert operator")
 rm -rf runs/grid_size_expert_bcrnn
-veragmil-pool-results runs/grid_size_expert_bcrnn/compare \
-  --agent "BC-RNN seed 1=results/grid_size_expert_bcrnn/results.json:$R" \
-  --agent "BC seed 1=results/grid_size_expert_bc/results.json:$B 1" \
-  --agent "BC seed 2=results/grid_size_expert_bc/results.json:$B 2" \
-  --agent "BC seed 3=results/grid_size_expert_bc/results.json:$B 3" \
-  --agent "BCQ seed 1=results/grid_size_expert_bcq/results.json:$Q 1" \
-  --agent "expert operator=results/grid_mended_operators/results.json:expert operator" \
-  --paired "BC seed 1" "BC-RNN seed 1" --paired "BC seed 2" "BC-RNN seed 1" --paired "BC seed 3" "BC-RNN seed 1" \
-  --paired "BCQ seed 1" "BC-RNN seed 1" --paired "expert operator" "BC-RNN seed 1"
+veragmil-pool-results runs/grid_size_expert_bcrnn/compare "${A[@]}" \
+  --paired "BC" "BC-RNN" --paired "BCQ" "BC-RNN" \
+  --paired "expert operator" "BC-RNN seed 1" --paired "expert operator" "BC-RNN seed 2"
 mkdir -p results/grid_size_expert_bcrnn/compare
-cp runs/grid_size_expert_bcrnn/compare/{paired.md,stages.md,table.md} results/grid_size_expert_bcrnn/compare/
+cp runs/grid_size_expert_bcrnn/compare/{paired.md,stages.md,table.md,seeds.md} results/grid_size_expert_bcrnn/compare/
