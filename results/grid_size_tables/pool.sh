@@ -10,7 +10,7 @@ source results/grid_calibrated_tables/pool_tables.sh  # add FOLDER MODEL, pool_t
 add grid_mended_operators "expert operator"
 add grid_size_expert_bc "expert BC no-load-size obs"
 add grid_size_expert_bcq "expert BCQ no-load-size obs"
-add grid_size_expert_bcrnn "expert BC-RNN no-load-size obs"  # training seeds 1 and 2
+add grid_size_expert_bcrnn "expert BC-RNN no-load-size obs"  # training seeds 1-3
 add grid_mended_operators "spacemouse operator"
 add grid_size_spacemouse_bc "spacemouse BC no-load-size obs no-noops"
 # the paper's questions bowl by bowl, seed by seed (paired.md): VR-like against 3D-mouse data for each algorithm and
