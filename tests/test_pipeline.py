@@ -255,7 +255,7 @@ def test_quickstart_end_to_end_records_trains_evaluates_and_prints_the_tables(tm
     assert agents == {
         "expert BC no-load-size obs",
         "expert operator",
-        "pretrained BC no-load-size obs 50k",
+        "pretrained BC-RNN no-load-size obs 50k",
     }  # the shipped checkpoint beside
     assert {(e["agent"], e["food"]) for e in summary["episodes"]} == {(a, f) for a in agents for f in ("pasta", "peas")}
     for name in ("table.md", "table.csv", "episodes.csv", "success.png"):

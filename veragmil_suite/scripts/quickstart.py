@@ -2,7 +2,7 @@
 veragmil-quickstart: the main job on a small default, headless.
 
 Records a few scripted demonstrations of each training food, trains robomimic's BC on them briefly, evaluates the
-checkpoint, the scripted expert itself and the shipped BC checkpoint trained at the study's size (30 expert
+checkpoint, the scripted expert itself and the shipped BC-RNN checkpoint trained at the study's size (30 expert
 demos per food, 50k gradient steps; models/checkpoints/README.md) on a seen food (rice) and an unseen one (peas),
 and prints the paper's tables. Every stage is one of our console programs; larger runs: veragmil-study (docs/study.md).
 """
@@ -18,10 +18,10 @@ from veragmil_suite.utils.asset_paths import pretrained_checkpoint
 from veragmil_suite.utils.cli.handler import command
 from veragmil_suite.utils.cli.parser import Parser
 
-# BC trained by veragmil-study on 30 expert demos per training food for 50k gradient steps, with the configs'
+# BC-RNN trained by veragmil-study on 30 expert demos per training food for 50k gradient steps, with the configs'
 # observations (no grain counts), on the calibrated physics (models/checkpoints)
-PRETRAINED = "bc_no-load-size_expert_30demos_50k.pth"
-PRETRAINED_NAME = "pretrained BC no-load-size obs 50k"
+PRETRAINED = "bc_rnn_no-load-size_expert_30demos_50k.pth"
+PRETRAINED_NAME = "pretrained BC-RNN no-load-size obs 50k"
 
 
 def build_parser() -> Parser:
