@@ -7,9 +7,8 @@
 set -euo pipefail
 export PATH=$PWD/.venv/bin:$PATH
 D=results/grid_size_spacemouse_bcq_intel
-SEEDS=(1 2 3)
 args=(--agent "spacemouse operator=results/grid_mended_operators/results.json:spacemouse operator")
-for s in "${SEEDS[@]}"; do
+for s in 1 2 3; do
   args+=(--agent "spacemouse BCQ seed $s=$D/results.json:spacemouse BCQ no-load-size obs no-noops seed $s")
   args+=(--agent "spacemouse BC seed $s=results/grid_size_spacemouse_bc/results.json:spacemouse BC no-load-size obs no-noops seed $s")
   args+=(--agent "expert BCQ seed $s=results/grid_size_expert_bcq/results.json:expert BCQ no-load-size obs seed $s")
