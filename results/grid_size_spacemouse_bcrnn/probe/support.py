@@ -97,13 +97,12 @@ for i, a in enumerate(agents):
 for b in np.argsort(-near):
     cells = " ".join(f"{success[(a, b)]}({stalls[(a, b)]})" for a in agents)
     print(f"  bowl {b:2d} start {np.round(grid[b], 0)} nearest {near[b]:5.1f}  {cells}")
-for lo, hi in ((0, 15), (15, 25), (25, 1e9)):
+for lo, hi in ((0, 15), (15, 25), (25, np.inf)):
     bowls = [b for b in range(GRID_BOWLS) if lo <= near[b] < hi]
     if bowls:
-        rate = [sum(success[(a, b)] for b in bowls) / (7 * len(bowls)) for a in agents]
+        rate = [round(100 * sum(success[(a, b)] for b in bowls) / (7 * len(bowls))) for a in agents]
         stall = [sum(stalls[(a, b)] for b in bowls) for a in agents]
-        band = f"{lo}-{hi if hi < 1e9 else 'inf'} mm"
-        print(f"  nearest {band}: {len(bowls)} bowls, success {[round(100 * r) for r in rate]} %, start stalls {stall}")
+        print(f"  nearest {lo}-{hi} mm: {len(bowls)} bowls, success {rate} %, start stalls {stall}")
 
 fresh = np.array([start(s) for s in FRESH_SEEDS])
 rng = np.random.default_rng(0)
