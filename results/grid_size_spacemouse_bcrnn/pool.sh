@@ -10,7 +10,7 @@ D=results/grid_size_spacemouse_bcrnn
 B=results/grid_size_spacemouse_bc/results.json
 E=results/grid_size_expert_bcrnn/results.json
 args=(--agent "spacemouse operator=results/grid_mended_operators/results.json:spacemouse operator")
-for s in 1 2; do
+for s in 1 2 3; do
   args+=(--agent "spacemouse BC-RNN seed $s=$D/results.json:spacemouse BC-RNN no-load-size obs no-noops seed $s")
   args+=(--agent "spacemouse BC seed $s=$B:spacemouse BC no-load-size obs no-noops seed $s")
   args+=(--agent "expert BC-RNN seed $s=$E:expert BC-RNN no-load-size obs seed $s")

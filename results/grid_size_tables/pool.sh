@@ -13,7 +13,7 @@ add grid_size_expert_bcq "expert BCQ no-load-size obs"
 add grid_size_expert_bcrnn "expert BC-RNN no-load-size obs"  # training seeds 1-3
 add grid_mended_operators "spacemouse operator"
 add grid_size_spacemouse_bc "spacemouse BC no-load-size obs no-noops"
-add grid_size_spacemouse_bcrnn "spacemouse BC-RNN no-load-size obs no-noops"  # training seeds 1-2
+add grid_size_spacemouse_bcrnn "spacemouse BC-RNN no-load-size obs no-noops"  # training seeds 1-3
 add grid_size_spacemouse_bcq_intel "spacemouse BCQ no-load-size obs no-noops"
 # the paper's questions bowl by bowl, seed by seed (paired.md): VR-like against 3D-mouse data for each algorithm and
 # the operators, then the paper's order of algorithms on the expert data and on the spacemouse data

@@ -115,3 +115,9 @@ for n in (30, 60, len(kept)):
         shares.append([100 * np.mean(d > r) for r in RADII_MM])
     print(f"  {n:3d} demos: {np.round(np.mean(shares, axis=0), 1)}")
 print(f"grid bowls farther than {RADII_MM} mm: {[int(np.sum(near > r)) for r in RADII_MM]} of {GRID_BOWLS}")
+all_kept = nearest(fresh, kept)
+far = int(np.argmax(near))
+print(
+    f"farthest fresh reset from the {len(kept)} kept starts: {all_kept.max():.1f} mm; "
+    f"bowl {far} ({near[far]:.1f} mm) lies beyond {100 * np.mean(all_kept < near[far]):.2f}% of fresh resets"
+)
