@@ -373,6 +373,9 @@ def test_a_killed_study_resumes_and_skips_every_finished_piece(tmp_path):
     config = json.loads((out / "runs" / "expert_bc_1demos_10steps_obs-no-load-size_seed2.json").read_text())
     assert config["train"]["seed"] == 2
     assert "skipping 1 evaluation episodes" in two.stdout and "; 1 to run" in two.stdout
+    # the seed's scoring adds its time to the evaluation's: the study's wall times cover every piece of scoring
+    assert json.loads((out / "timings.json").read_text())["evaluate"] > timings["evaluate"]
+    assert json.loads((out / "eval" / "results.json").read_text())["config"]["episodes_journaled"] >= 3
     with open(out / "eval" / "seeds.csv") as f:
         spread = {r["train_seed"]: float(r["seen success %"]) for r in csv.DictReader(f)}
     assert spread["mean"] == (spread["1"] + spread["2"]) / 2 and spread["lowest"] == min(spread["1"], spread["2"])

@@ -141,6 +141,7 @@ def evaluate(
         if spec.kind == "dataset":
             records += dataset_episodes(name, spec.target, foods)
     journal = Journal(Path(output_dir) / JOURNAL_NAME, resume) if output_dir is not None else None
+    journaled = len(journal.records) if journal is not None else 0  # any agent's, from the runs before this one
     if journal is not None and journal.set_aside is not None and say is not None:
         say(journal.describe_set_aside())
     if journal is not None and resume:
@@ -177,6 +178,7 @@ def evaluate(
         robot=robot,
         success_hold_s=SUCCESS_HOLD_S,
         episodes_run=episodes_run,
+        episodes_journaled=journaled,
         versions=versions(),
     )
     if rnn_horizons:  # only when asked: the recurrent agents' reset period, by agent

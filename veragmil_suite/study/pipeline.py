@@ -186,8 +186,11 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True, verbose: boo
             robot=settings.robot,
             **kwargs,
         )
-    if result.config["episodes_run"]:  # a fully journaled evaluation keeps the time of the run that did it
-        note("evaluate", time.perf_counter() - start)
+    # the evaluation's time over its pieces: a run that added episodes to a journal (another seed, a resumed kill)
+    # adds its time to the earlier runs'; a fully journaled evaluation keeps theirs; a fresh journal starts anew
+    if result.config["episodes_run"]:
+        earlier = timings.get("evaluate", 0.0) if result.config["episodes_journaled"] else 0.0
+        note("evaluate", earlier + time.perf_counter() - start)
     eval_dir = out / "eval"
     if len(settings.demos_per_food) > 1 or settings.sweeps_steps:
         write_learning_curves(result, points, eval_dir)

@@ -124,7 +124,8 @@ def publish(study_dir: Path, dest: Path, command: str) -> list[str]:
         + ", ".join(f"{k} {config[k]}" for k in ("episodes", "seed", "horizon", "success_hold_s") if k in config),
         "",
         "Wall times (s, this machine, the pieces behind this folder's models: their training, the recording of their"
-        " data, the evaluation; a piece a study skipped keeps the time of the run that performed it):",
+        " data, the evaluation; a piece a study skipped keeps the time of the run that performed it, and the"
+        " evaluation sums the runs that added episodes to it):",
         "",
         "| piece | seconds |",
         "|---|---:|",
