@@ -12,6 +12,7 @@ jobs load the machine.
     python benchmarks/bench_training.py                       # bc, bc_rnn, bcq, bc_image, diffusion_policy
     python benchmarks/bench_training.py --algos bc_rnn_image --image-steps 2
     python benchmarks/bench_training.py --algos diffusion_policy --diffusion-steps 5 --threads 1 2
+    python benchmarks/bench_training.py --algos diffusion_policy bc --threads 2 --precision fp32 bf16
     python benchmarks/bench_training.py --device cuda --steps 100 --image-steps 30 --diffusion-steps 30
 """
 
@@ -41,10 +42,13 @@ from veragmil_suite.utils import cli  # noqa: E402
 from veragmil_suite.utils.timing import stopwatch  # noqa: E402
 
 TORCH_DEVICES = ("cpu", "cuda")
+# the arithmetic of the forward and backward passes: float32 as robomimic trains, or torch's autocast to bfloat16
+PRECISIONS = ("fp32", "bf16")
 
 
-def bench_algo(name: str, dataset: str, steps: int, device: str = "cpu") -> dict:
-    """Times ``steps`` gradient steps of config ``name`` on ``dataset`` (after 2 warm-up steps) on torch ``device``."""
+def bench_algo(name: str, dataset: str, steps: int, device: str = "cpu", precision: str = "fp32") -> dict:
+    """Times ``steps`` gradient steps of config ``name`` on ``dataset`` (after 2 warm-up steps) on torch ``device``;
+    ``precision`` bf16 runs them under torch's autocast to bfloat16 (the weights and the optimizer stay float32)."""
     import torch  # heavy: torch, after robomimic_compat.install()
     from robomimic.algo import algo_factory  # robomimic: after robomimic_compat.install()
     from robomimic.config import config_factory  # robomimic: after robomimic_compat.install()
@@ -70,10 +74,12 @@ def bench_algo(name: str, dataset: str, steps: int, device: str = "cpu") -> dict
     )
     trainset, _ = train_utils.load_data_for_training(config, obs_keys=shape_meta["all_obs_keys"])
     loader = DataLoader(trainset, batch_size=config.train.batch_size, shuffle=True, drop_last=True)
-    train_utils.run_epoch(model=model, data_loader=loader, epoch=1, num_steps=2)
+    autocast = torch.autocast(torch.device(device).type, dtype=torch.bfloat16, enabled=precision == "bf16")
+    with autocast:
+        train_utils.run_epoch(model=model, data_loader=loader, epoch=1, num_steps=2)
     sync = torch.cuda.synchronize if device.startswith("cuda") else lambda: None
     sync()
-    with stopwatch() as timed:
+    with stopwatch() as timed, autocast:
         log = train_utils.run_epoch(model=model, data_loader=loader, epoch=1, num_steps=steps)
         sync()
     elapsed, cpu = timed.wall_s, timed.cpu_s
@@ -83,6 +89,7 @@ def bench_algo(name: str, dataset: str, steps: int, device: str = "cpu") -> dict
     parts = {part: log[f"Time_{part}"] * 60.0 for part in EPOCH_PARTS}
     return dict(
         config=name,
+        precision=precision,
         batch=batch,
         seq=seq,
         steps_per_s=steps / elapsed,
@@ -124,6 +131,12 @@ def build_parser() -> cli.Parser:
         default="cpu",
         help="torch device the networks train on",
     )
+    parser.add_argument(
+        "--precision",
+        type=cli.ListOf(cli.Choice("precision", PRECISIONS)),
+        default=["fp32"],
+        help="fp32 (robomimic's) and/or bf16 (torch's autocast: AMX or AVX512-BF16 CPUs, GPUs)",
+    )
     return parser
 
 
@@ -156,10 +169,11 @@ def main(args: argparse.Namespace) -> int:
         steps = args.diffusion_steps if name.startswith("diffusion_policy") else steps
         for threads in args.threads:
             torch.set_num_threads(threads)
-            rows.append(dict(bench_algo(name, dataset, steps, args.device), threads=threads))
-            r = rows[-1]
-            rate = f"{r['steps_per_s']:.2f} steps/s, {r['samples_per_s']:.0f} samples/s"
-            print(f"{name}, {threads} threads: {rate}", flush=True)
+            for precision in args.precision:
+                rows.append(dict(bench_algo(name, dataset, steps, args.device, precision), threads=threads))
+                r = rows[-1]
+                rate = f"{r['steps_per_s']:.2f} steps/s, {r['samples_per_s']:.0f} samples/s"
+                print(f"{name}, {threads} threads, {precision}: {rate}", flush=True)
 
     print(
         f"\ntraining throughput, {_device_name(args.device)} ({os.cpu_count()} cores, "
@@ -168,14 +182,15 @@ def main(args: argparse.Namespace) -> int:
     )
     parts = " | ".join(f"% {p.lower().replace('_', ' ')}" for p in EPOCH_PARTS)
     print(
-        f"| config | torch threads | batch | seq | gradient steps/s | per CPU second | samples/s | frames/s | {parts} |"
+        "| config | torch threads | precision | batch | seq | gradient steps/s | per CPU second | samples/s | "
+        f"frames/s | {parts} |"
     )
-    print("|---|---|---|---|---|---|---|---|" + "---|" * len(EPOCH_PARTS))
+    print("|---|---|---|---|---|---|---|---|---|" + "---|" * len(EPOCH_PARTS))
     for r in rows:
         shares = " | ".join(f"{100 * r['shares'][p]:.0f}" for p in EPOCH_PARTS)
         print(
-            f"| {r['config']} | {r['threads']} | {r['batch']} | {r['seq']} | {r['steps_per_s']:.2f} | "
-            f"{r['steps_per_cpu_s']:.2f} | "
+            f"| {r['config']} | {r['threads']} | {r['precision']} | {r['batch']} | {r['seq']} | "
+            f"{r['steps_per_s']:.2f} | {r['steps_per_cpu_s']:.2f} | "
             f"{r['samples_per_s']:.0f} | {r['frames_per_s']:.0f} | {shares} |"
         )
     return 0
