@@ -6,33 +6,16 @@ eager and through torch.compile (inductor, CPU), on 2 torch threads. Run from th
     python results/training_precision/compile_probe.py > results/training_precision/compile_probe.txt
 """
 
-import json
 import time
 from functools import partial
-from pathlib import Path
 
 import torch
 from torch.nn import functional as F
+from unet_batch import unet_and_batch
 
-from veragmil_suite.learning.algos.conditional_unet1d import ConditionalUnet1D
 from veragmil_suite.utils.timing import per_call
 
-config = json.loads((Path(__file__).resolve().parents[2] / "configs" / "json" / "diffusion_policy.json").read_text())
-unet, batch = config["algo"]["unet"], config["train"]["batch_size"]
-horizon = config["algo"]["horizon"]["prediction_horizon"]
-torch.set_num_threads(2)
-torch.manual_seed(0)
-net = ConditionalUnet1D(
-    input_dim=6,
-    global_cond_dim=44,
-    diffusion_step_embed_dim=unet["diffusion_step_embed_dim"],
-    down_dims=tuple(unet["down_dims"]),
-    kernel_size=unet["kernel_size"],
-    n_groups=unet["n_groups"],
-)
-optimizer = torch.optim.AdamW(net.parameters(), lr=1e-4)
-actions, cond = torch.randn(batch, horizon, 6), torch.randn(batch, 44)
-steps = torch.randint(0, 100, (batch,))
+net, optimizer, actions, cond, steps = unet_and_batch(cond_dim=44)
 
 
 def train_step(model: torch.nn.Module) -> None:

@@ -7,32 +7,15 @@ step for one observation, on 2 torch threads. Run from the repository root:
     python results/training_precision/unet_probe.py > results/training_precision/unet_probe.txt
 """
 
-import json
 from functools import partial
-from pathlib import Path
 
 import torch
 from torch.nn import functional as F
+from unet_batch import HORIZON, unet_and_batch
 
-from veragmil_suite.learning.algos.conditional_unet1d import ConditionalUnet1D
 from veragmil_suite.utils.timing import per_call
 
-config = json.loads((Path(__file__).resolve().parents[2] / "configs" / "json" / "diffusion_policy.json").read_text())
-unet, batch = config["algo"]["unet"], config["train"]["batch_size"]
-horizon = config["algo"]["horizon"]["prediction_horizon"]
-torch.set_num_threads(2)
-torch.manual_seed(0)
-net = ConditionalUnet1D(
-    input_dim=6,
-    global_cond_dim=80,
-    diffusion_step_embed_dim=unet["diffusion_step_embed_dim"],
-    down_dims=tuple(unet["down_dims"]),
-    kernel_size=unet["kernel_size"],
-    n_groups=unet["n_groups"],
-)
-optimizer = torch.optim.AdamW(net.parameters(), lr=1e-4)
-actions, cond = torch.randn(batch, horizon, 6), torch.randn(batch, 80)
-steps = torch.randint(0, 100, (batch,))
+net, optimizer, actions, cond, steps = unet_and_batch(cond_dim=80)
 
 
 def autocast(bf16: bool) -> torch.autocast:
@@ -56,7 +39,7 @@ for bf16 in (False, True, False, True):  # twice each, alternating: the host's l
     seconds = per_call(partial(train_step, bf16), calls=4, warmup=2).wall_s
     print(f"training step, {'bf16' if bf16 else 'fp32'}: {seconds:.2f} s", flush=True)
 
-one_action, one_cond, one_step = torch.randn(1, horizon, 6), torch.randn(1, 80), torch.tensor([5])
+one_action, one_cond, one_step = torch.randn(1, HORIZON, 6), torch.randn(1, 80), torch.tensor([5])
 for bf16 in (False, True):
     elapsed_ms = per_call(partial(denoise_step, bf16), calls=20, warmup=3).wall_s * 1000
     print(f"denoising step, one observation, {'bf16' if bf16 else 'fp32'}: {elapsed_ms:.0f} ms")
