@@ -39,7 +39,7 @@ for bf16 in (False, True, False, True):  # twice each, alternating: the host's l
     seconds = per_call(partial(train_step, bf16), calls=4, warmup=2).wall_s
     print(f"training step, {'bf16' if bf16 else 'fp32'}: {seconds:.2f} s", flush=True)
 
-one_action, one_cond, one_step = torch.randn(1, HORIZON, 6), torch.randn(1, 80), torch.tensor([5])
+one_action, one_cond, one_step = torch.randn(1, HORIZON, 6), torch.randn(1, cond.shape[1]), torch.tensor([5])
 for bf16 in (False, True):
     elapsed_ms = per_call(partial(denoise_step, bf16), calls=20, warmup=3).wall_s * 1000
     print(f"denoising step, one observation, {'bf16' if bf16 else 'fp32'}: {elapsed_ms:.0f} ms")
