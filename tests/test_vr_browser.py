@@ -117,9 +117,13 @@ def test_a_vr_collection_in_chromium_discards_keeps_and_saves_scoop_granular_dem
          "--horizon", "2000"],  # 100 s: a page slowed by a loaded host ends its episode by A or B, not the horizon
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
+    # the page shows an attempt's number before its scene is reset, and asks for the squeeze once it is ready
+    ready = "squeeze the grip to start"
     steps = [
         {"waitFor": "kept 0/1 | discarded 0"},
+        {"waitFor": ready},
         {"move": [0.0, 0.05, 0.0], "press": "b-button", "waitFor": "discarded 1"},
+        {"waitFor": ready},
         {"move": [0.05, 0.0, 0.0], "press": "a-button", "waitFor": f"finished: 1 demo saved to {out}"},
     ]
     browser = None
@@ -135,6 +139,8 @@ def test_a_vr_collection_in_chromium_discards_keeps_and_saves_scoop_granular_dem
             ["node", "e2e_vr.mjs", f"http://localhost:{port}/", json.dumps(steps)],
             cwd=BROWSER_DIR, capture_output=True, text=True, timeout=240,
         )  # fmt: skip
+        if browser.returncode != 0:
+            collect.kill()  # it waits for a page that has gone; the browser's own error is the one to read
         stdout, stderr = collect.communicate(timeout=60)
     finally:
         if collect.poll() is None:

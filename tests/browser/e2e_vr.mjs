@@ -17,6 +17,9 @@ import { chromium } from "playwright-core";
 const require = createRequire(import.meta.url);
 const [url, movesJson] = process.argv.slice(2);
 const moves = JSON.parse(movesJson || "[[0.1, 0, 0]]");
+// every wait is on the page, the server or the simulation doing its part, not on how fast: a loaded host resets a scene
+// (a new episode's pile) and steps it several times slower than an idle one
+const WAIT_MS = 90000;
 const FLAGS = [
   "--headless",
   "--no-sandbox",
@@ -50,14 +53,21 @@ try {
   });
   await page.goto(url);
   const stats = () => window.vrTeleop.stats;
-  await page.waitForFunction(() => window.vrTeleop && window.vrTeleop.stats.connected, null, { timeout: 30000 });
-  await page.waitForFunction(() => window.vrTeleop.stats.framesDecoded >= 3, null, { timeout: 30000 });
+  // waits until fn(arg) holds in the page; a timeout names what was awaited and the status line the page showed
+  const until = async (what, fn, arg = null) => {
+    try {
+      await page.waitForFunction(fn, arg, { timeout: WAIT_MS });
+    } catch (e) {
+      const status = await page.evaluate(() => document.getElementById("status")?.textContent);
+      throw new Error(`waiting for ${what}, the status line says "${status}": ${e.message}`);
+    }
+  };
+  await until("the connection", () => window.vrTeleop && window.vrTeleop.stats.connected);
+  await until("3 camera frames", () => window.vrTeleop.stats.framesDecoded >= 3);
   result.framesBeforeXR = await page.evaluate(() => window.vrTeleop.stats.framesDecoded);
-  await page.waitForFunction(() => !document.getElementById("enter-vr").disabled, null, { timeout: 10000 });
+  await until("Enter VR", () => !document.getElementById("enter-vr").disabled);
   await page.click("#enter-vr");
-  await page.waitForFunction(() => window.vrTeleop.stats.inXR && window.vrTeleop.stats.xrFrames > 20, null, {
-    timeout: 30000,
-  });
+  await until("20 XR frames", () => window.vrTeleop.stats.inXR && window.vrTeleop.stats.xrFrames > 20);
   for (const step of moves) {
     // a step is a hand move [dx, dy, dz], or {move, press, waitFor}: the move, then a long press of a button
     // ("a-button", "b-button"), then waiting until the status line contains waitFor
@@ -65,8 +75,7 @@ try {
     const t0 = Date.now();
     if (move) {
       await page.evaluate(() => window.__emulatedHeadset.controllers.right.updateButtonValue("squeeze", 1));
-      await page.waitForFunction(() => window.vrTeleop.stats.lastStatus && window.vrTeleop.stats.lastStatus.engaged,
-        null, { timeout: 10000 });
+      await until("engaged", () => window.vrTeleop.stats.lastStatus && window.vrTeleop.stats.lastStatus.engaged);
       await page.evaluate(async (d) => {
         const c = window.__emulatedHeadset.controllers.right;
         const start = [c.position.x, c.position.y, c.position.z];
@@ -77,7 +86,7 @@ try {
       }, move);
       await page.waitForTimeout(1500); // hold: the arm settles
       await page.evaluate(() => window.__emulatedHeadset.controllers.right.updateButtonValue("squeeze", 0));
-      await page.waitForFunction(() => !window.vrTeleop.stats.lastStatus.engaged, null, { timeout: 10000 });
+      await until("released", () => !window.vrTeleop.stats.lastStatus.engaged);
       await page.waitForTimeout(500);
     }
     if (step.press) {
@@ -86,13 +95,8 @@ try {
       await page.evaluate((b) => window.__emulatedHeadset.controllers.right.updateButtonValue(b, 0), step.press);
     }
     if (step.waitFor) {
-      try {
-        await page.waitForFunction((text) => document.getElementById("status").textContent.includes(text),
-          step.waitFor, { timeout: 90000 });
-      } catch (e) {
-        const status = await page.evaluate(() => document.getElementById("status").textContent);
-        throw new Error(`waiting for "${step.waitFor}", the status line says "${status}": ${e.message}`);
-      }
+      await until(`"${step.waitFor}"`, (text) => document.getElementById("status").textContent.includes(text),
+        step.waitFor);
     }
     result.moves.push({ move, press: step.press || null, ms: Date.now() - t0 });
   }
