@@ -41,6 +41,11 @@ ALLOWED_DIFFUSION = (
     "algo.ddim.enabled",
 )
 
+# Diffusion Policy for a CPU: the U-Net's widths halved, a quarter of the cost a gradient step (configs/README.md);
+# test_the_small_diffusion_config_differs_from_the_full_one_only_in_its_widths holds it to that
+CPU_PRESET_DIFFUSION = ("algo.unet.down_dims",)
+CPU_PRESET_CONFIGS = ("diffusion_policy_small",)
+
 CONFIGS = sorted(p.stem for p in CONFIG_DIR.glob("*.json"))
 
 
@@ -89,12 +94,22 @@ def test_config_differs_from_its_template_only_where_allowed(name):
     allowed = ALLOWED + (ALLOWED_RNN if config["algo"].get("rnn", {}).get("enabled") else ())
     allowed += ALLOWED_DIFFUSION if config["algo_name"] == "diffusion_policy" else ()
     allowed += PAPER_PRESET_RNN if name in PAPER_PRESET_CONFIGS else ()
+    allowed += CPU_PRESET_DIFFUSION if name in CPU_PRESET_CONFIGS else ()
     differences = _differences(config)
     assert differences, "a config identical to its template sets no dataset or observations"
     unexpected = sorted(
         k for k in differences if not any(k == a or (a.endswith(".") and k.startswith(a)) for a in allowed)
     )
     assert unexpected == [], f"{name}.json changes template settings it should leave alone: {unexpected}"
+
+
+def test_the_small_diffusion_config_differs_from_the_full_one_only_in_its_widths():
+    full, small = _flatten(_load("diffusion_policy")), _flatten(_load("diffusion_policy_small"))
+    assert {k for k in full.keys() | small.keys() if full.get(k) != small.get(k)} == {
+        "experiment.name",
+        *CPU_PRESET_DIFFUSION,
+    }
+    assert small["algo.unet.down_dims"] == [w // 2 for w in full["algo.unet.down_dims"]]
 
 
 def test_the_gmm_config_is_robomimics_paper_preset_for_human_demonstrations():
@@ -164,6 +179,8 @@ def test_every_registered_algorithm_has_its_config_and_a_name_registers_once():
     assert {"bc", "bc_rnn", "bcq", "diffusion_policy"} <= set(ALGORITHMS)
     for algorithm in ALGORITHMS.values():
         config = json.loads((CONFIG_DIR / f"{algorithm.config}.json").read_text())
-        assert config["algo_name"] in (algorithm.name, "bc")  # BC-RNN trains robomimic's bc with its RNN on
+        # a variant trains the robomimic algorithm its name begins with: BC-RNN robomimic's bc with its RNN on,
+        # diffusion_policy_small our diffusion_policy with a narrower U-Net
+        assert algorithm.name.startswith(config["algo_name"]), (algorithm.name, config["algo_name"])
     with pytest.raises(ValueError, match="registered already"):
         register_algorithm(StudyAlgorithm("bc", "bc", "BC again"))

@@ -15,9 +15,10 @@ HORIZON = CONFIG["algo"]["horizon"]["prediction_horizon"]
 
 
 def unet_and_batch(
-    cond_dim: int,
+    cond_dim: int, down_dims: tuple[int, ...] | None = None
 ) -> tuple[ConditionalUnet1D, torch.optim.AdamW, torch.Tensor, torch.Tensor, torch.Tensor]:
-    """The U-Net conditioned on ``cond_dim`` features, its optimizer and a batch: actions, conditioning, noise steps."""
+    """The U-Net conditioned on ``cond_dim`` features (its widths ``down_dims``, else the config's), its optimizer and a
+    batch: actions, conditioning, noise steps."""
     unet, batch = CONFIG["algo"]["unet"], CONFIG["train"]["batch_size"]
     torch.set_num_threads(2)
     torch.manual_seed(0)
@@ -25,7 +26,7 @@ def unet_and_batch(
         input_dim=6,
         global_cond_dim=cond_dim,
         diffusion_step_embed_dim=unet["diffusion_step_embed_dim"],
-        down_dims=tuple(unet["down_dims"]),
+        down_dims=tuple(down_dims or unet["down_dims"]),
         kernel_size=unet["kernel_size"],
         n_groups=unet["n_groups"],
     )

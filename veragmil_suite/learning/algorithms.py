@@ -69,3 +69,10 @@ def bcq() -> StudyAlgorithm:
 def diffusion_policy() -> StudyAlgorithm:
     """Diffusion Policy (veragmil_suite.learning.algos), a robomimic algorithm of ours."""
     return StudyAlgorithm("diffusion_policy", "diffusion_policy", "Diffusion Policy")
+
+
+@register_algorithm
+def diffusion_policy_small() -> StudyAlgorithm:
+    """Diffusion Policy with its U-Net's widths halved (128-256-512, 18M weights against 66M): a gradient step costs
+    a quarter as much on a CPU (configs/README.md), so that a training run fits a working session there."""
+    return StudyAlgorithm("diffusion_policy_small", "diffusion_policy_small", "Diffusion Policy small U-Net")
