@@ -16,6 +16,7 @@ add grid_mended_operators "spacemouse operator"
 add grid_size_spacemouse_bc "spacemouse BC no-load-size obs no-noops"
 add grid_size_spacemouse_bcrnn "spacemouse BC-RNN no-load-size obs no-noops"  # training seeds 1-3
 add grid_size_spacemouse_bcq_intel "spacemouse BCQ no-load-size obs no-noops"
+add grid_size_spacemouse_dp "spacemouse Diffusion Policy no-load-size obs no-noops" 1  # training seed 1 (CPU-trained)
 # the paper's questions bowl by bowl, seed by seed (paired.md): VR-like against 3D-mouse data for each algorithm and
 # the operators, then the paper's order of algorithms on the expert data (Diffusion Policy's pairs on its one seed)
 # and on the spacemouse data
@@ -23,6 +24,7 @@ P+=(--paired "spacemouse operator" "expert operator")
 P+=(--paired "spacemouse BC no-load-size obs no-noops" "expert BC no-load-size obs")
 P+=(--paired "spacemouse BC-RNN no-load-size obs no-noops" "expert BC-RNN no-load-size obs")
 P+=(--paired "spacemouse BCQ no-load-size obs no-noops" "expert BCQ no-load-size obs")
+P+=(--paired "spacemouse Diffusion Policy no-load-size obs no-noops" "expert Diffusion Policy no-load-size obs")
 P+=(--paired "expert BC no-load-size obs" "expert BCQ no-load-size obs")
 P+=(--paired "expert BC no-load-size obs" "expert BC-RNN no-load-size obs")
 P+=(--paired "expert BC no-load-size obs" "expert Diffusion Policy no-load-size obs")
@@ -30,4 +32,7 @@ P+=(--paired "expert BC-RNN no-load-size obs" "expert Diffusion Policy no-load-s
 P+=(--paired "expert BCQ no-load-size obs" "expert Diffusion Policy no-load-size obs")
 P+=(--paired "spacemouse BC no-load-size obs no-noops" "spacemouse BC-RNN no-load-size obs no-noops")
 P+=(--paired "spacemouse BC no-load-size obs no-noops" "spacemouse BCQ no-load-size obs no-noops")
+P+=(--paired "spacemouse BC no-load-size obs no-noops" "spacemouse Diffusion Policy no-load-size obs no-noops")
+P+=(--paired "spacemouse BC-RNN no-load-size obs no-noops" "spacemouse Diffusion Policy no-load-size obs no-noops")
+P+=(--paired "spacemouse BCQ no-load-size obs no-noops" "spacemouse Diffusion Policy no-load-size obs no-noops")
 pool_tables grid_size_tables
