@@ -1,7 +1,7 @@
 #!/bin/bash
 # Pairs spacemouse Diffusion Policy `no-load-size` seed 1 (this folder: pauses cut), bowl by bowl, with seed 1 of
 # spacemouse BC, BC-RNN and BCQ on the same observations and demos (../grid_size_spacemouse_bc/,
-# ../grid_size_spacemouse_bcrnn/, ../grid_size_spacemouse_bcq_intel/: the same recording, the same Intel hosts' piles),
+# ../grid_size_spacemouse_bcrnn/, ../grid_size_spacemouse_bcq_intel/: recorded with the same seeds on the same Intel hosts, the same piles),
 # with the spacemouse operator that recorded its demos (../grid_mended_operators/) and with expert Diffusion Policy
 # seed 1 (../grid_size_expert_dp/: VR-like against 3D-mouse data, the paper's claim): compare/paired.md.
 # Reads only committed files; run from the repository root.
