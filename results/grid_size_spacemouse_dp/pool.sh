@@ -1,23 +1,29 @@
 #!/bin/bash
-# Pairs spacemouse Diffusion Policy `no-load-size` seed 1 (this folder: pauses cut), bowl by bowl, with seed 1 of
-# spacemouse BC, BC-RNN and BCQ on the same observations and demos (../grid_size_spacemouse_bc/,
-# ../grid_size_spacemouse_bcrnn/, ../grid_size_spacemouse_bcq_intel/: recorded with the same seeds on the same Intel hosts, the same piles),
-# with the spacemouse operator that recorded its demos (../grid_mended_operators/) and with expert Diffusion Policy
-# seed 1 (../grid_size_expert_dp/: VR-like against 3D-mouse data, the paper's claim): compare/paired.md.
-# Reads only committed files; run from the repository root.
+# Pairs spacemouse Diffusion Policy `no-load-size` (this folder: pauses cut), seed by seed and bowl by bowl, with the
+# same seed of spacemouse BC, BC-RNN and BCQ on the same observations and demos (../grid_size_spacemouse_bc/,
+# ../grid_size_spacemouse_bcrnn/, ../grid_size_spacemouse_bcq_intel/: recorded with the same seeds on the same Intel
+# hosts, the same piles), with the spacemouse operator that recorded its demos (../grid_mended_operators/) and with
+# expert Diffusion Policy seed 1 (../grid_size_expert_dp/: VR-like against 3D-mouse data, the paper's claim):
+# compare/paired.md. Reads only committed files; run from the repository root.
 set -euo pipefail
 export PATH=$PWD/.venv/bin:$PATH
+G=results/grid_size_spacemouse  # the spacemouse models' folders: ${G}_dp (this one), ${G}_bc, ...
+D=${G}_dp
 S="spacemouse Diffusion Policy no-load-size obs no-noops"
-A=(--agent "spacemouse DP seed 1=results/grid_size_spacemouse_dp/results.json:$S")
-A+=(--agent "spacemouse BC seed 1=results/grid_size_spacemouse_bc/results.json:spacemouse BC no-load-size obs no-noops seed 1")
-A+=(--agent "spacemouse BC-RNN seed 1=results/grid_size_spacemouse_bcrnn/results.json:spacemouse BC-RNN no-load-size obs no-noops seed 1")
-A+=(--agent "spacemouse BCQ seed 1=results/grid_size_spacemouse_bcq_intel/results.json:spacemouse BCQ no-load-size obs no-noops seed 1")
-A+=(--agent "spacemouse operator=results/grid_mended_operators/results.json:spacemouse operator")
+O="no-load-size obs no-noops"  # the other spacemouse models' label, after the algorithm
+A=(--agent "spacemouse operator=results/grid_mended_operators/results.json:spacemouse operator")
 A+=(--agent "expert DP seed 1=results/grid_size_expert_dp/results.json:expert Diffusion Policy no-load-size obs")
+for s in 1 2; do
+  A+=(--agent "spacemouse DP seed $s=$D/results.json:$S seed $s")
+  A+=(--agent "spacemouse BC seed $s=${G}_bc/results.json:spacemouse BC $O seed $s")
+  A+=(--agent "spacemouse BC-RNN seed $s=${G}_bcrnn/results.json:spacemouse BC-RNN $O seed $s")
+  A+=(--agent "spacemouse BCQ seed $s=${G}_bcq_intel/results.json:spacemouse BCQ $O seed $s")
+  A+=(--paired "spacemouse operator" "spacemouse DP seed $s")
+done
+# the recipes seed by seed (both seeds together; expert DP has seed 1 only)
+A+=(--paired "spacemouse BC" "spacemouse DP" --paired "spacemouse BC-RNN" "spacemouse DP")
+A+=(--paired "spacemouse BCQ" "spacemouse DP" --paired "spacemouse DP" "expert DP")
 rm -rf runs/grid_size_spacemouse_dp
-veragmil-pool-results runs/grid_size_spacemouse_dp/compare "${A[@]}" \
-  --paired "spacemouse BC seed 1" "spacemouse DP seed 1" --paired "spacemouse BC-RNN seed 1" "spacemouse DP seed 1" \
-  --paired "spacemouse BCQ seed 1" "spacemouse DP seed 1" --paired "spacemouse operator" "spacemouse DP seed 1" \
-  --paired "spacemouse DP seed 1" "expert DP seed 1"
-mkdir -p results/grid_size_spacemouse_dp/compare
-cp runs/grid_size_spacemouse_dp/compare/{paired.md,stages.md,table.md} results/grid_size_spacemouse_dp/compare/
+veragmil-pool-results runs/grid_size_spacemouse_dp/compare "${A[@]}"
+mkdir -p $D/compare
+cp runs/grid_size_spacemouse_dp/compare/{paired.md,seeds.md,stages.md,table.md} $D/compare/
