@@ -3,7 +3,7 @@
 # same seed of spacemouse BC, BC-RNN and BCQ on the same observations and demos (../grid_size_spacemouse_bc/,
 # ../grid_size_spacemouse_bcrnn/, ../grid_size_spacemouse_bcq_intel/: recorded with the same seeds on the same Intel
 # hosts, the same piles), with the spacemouse operator that recorded its demos (../grid_mended_operators/) and with
-# expert Diffusion Policy seed 1 (../grid_size_expert_dp/: VR-like against 3D-mouse data, the paper's claim):
+# expert Diffusion Policy, seed by seed (../grid_size_expert_dp/: VR-like against 3D-mouse data, the paper's claim):
 # compare/paired.md. Reads only committed files; run from the repository root.
 set -euo pipefail
 export PATH=$PWD/.venv/bin:$PATH
@@ -11,16 +11,17 @@ G=results/grid_size_spacemouse  # the spacemouse models' folders: ${G}_dp (this 
 D=${G}_dp
 S="spacemouse Diffusion Policy no-load-size obs no-noops"
 O="no-load-size obs no-noops"  # the other spacemouse models' label, after the algorithm
+E="expert Diffusion Policy no-load-size obs"
 A=(--agent "spacemouse operator=results/grid_mended_operators/results.json:spacemouse operator")
-A+=(--agent "expert DP seed 1=results/grid_size_expert_dp/results.json:expert Diffusion Policy no-load-size obs")
 for s in 1 2; do
   A+=(--agent "spacemouse DP seed $s=$D/results.json:$S seed $s")
   A+=(--agent "spacemouse BC seed $s=${G}_bc/results.json:spacemouse BC $O seed $s")
   A+=(--agent "spacemouse BC-RNN seed $s=${G}_bcrnn/results.json:spacemouse BC-RNN $O seed $s")
   A+=(--agent "spacemouse BCQ seed $s=${G}_bcq_intel/results.json:spacemouse BCQ $O seed $s")
+  A+=(--agent "expert DP seed $s=results/grid_size_expert_dp/results.json:$E seed $s")
   A+=(--paired "spacemouse operator" "spacemouse DP seed $s")
 done
-# the recipes seed by seed (both seeds together; expert DP has seed 1 only)
+# the recipes seed by seed (both seeds together)
 A+=(--paired "spacemouse BC" "spacemouse DP" --paired "spacemouse BC-RNN" "spacemouse DP")
 A+=(--paired "spacemouse BCQ" "spacemouse DP" --paired "spacemouse DP" "expert DP")
 rm -rf runs/grid_size_spacemouse_dp
