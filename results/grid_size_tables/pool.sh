@@ -11,7 +11,7 @@ add grid_mended_operators "expert operator"
 add grid_size_expert_bc "expert BC no-load-size obs"
 add grid_size_expert_bcq "expert BCQ no-load-size obs"
 add grid_size_expert_bcrnn "expert BC-RNN no-load-size obs"  # training seeds 1-3
-add grid_size_expert_dp "expert Diffusion Policy no-load-size obs"  # training seeds 1-2 (CPU-trained)
+add grid_size_expert_dp "expert Diffusion Policy no-load-size obs"  # training seeds 1-3 (CPU-trained)
 add grid_mended_operators "spacemouse operator"
 add grid_size_spacemouse_bc "spacemouse BC no-load-size obs no-noops"
 add grid_size_spacemouse_bcrnn "spacemouse BC-RNN no-load-size obs no-noops"  # training seeds 1-3
