@@ -596,3 +596,28 @@ def test_a_journaled_episode_on_a_pile_no_longer_drawn_runs_again(tmp_path):
     said.clear()
     evaluate({"expert": "expert"}, **run, progress=False, resume=True, say=said.append)
     assert not any("no longer draws" in s for s in said) and any("skipping 1 evaluation" in s for s in said)
+
+
+def test_a_checkpoints_metadata_is_read_with_its_weights_mapped_not_read(tmp_path):
+    """The readers of a checkpoint's metadata (the argument check, env_metadata, the rnn horizon) map its tensors
+    from the file; a policy's reader reads them; a file of torch's legacy format is read whole by both."""
+    import torch
+
+    from veragmil_suite.learning.checkpoints import read_checkpoint
+
+    ckpt = {"algo_name": "bc", "config": "{}", "env_metadata": {"env_name": "ScoopGranular"}, "shape_metadata": {}}
+    ckpt["model"] = {"policy.weight": torch.arange(1000.0)}
+    zipped, legacy = tmp_path / "zipped.pth", tmp_path / "legacy.pth"
+    torch.save(ckpt, zipped)
+    torch.save(ckpt, legacy, _use_new_zipfile_serialization=False)
+    for path, weights, mapped in [
+        (zipped, True, False),
+        (legacy, True, False),
+        (legacy, False, False),
+        (zipped, False, True),
+    ]:
+        read = read_checkpoint(str(path), weights=weights)
+        assert read["env_metadata"] == ckpt["env_metadata"]
+        assert torch.equal(read["model"]["policy.weight"], ckpt["model"]["policy.weight"])
+        assert (str(path) in Path("/proc/self/maps").read_text()) == mapped, (path.name, weights)
+        del read

@@ -408,7 +408,7 @@ def _task_environments(tasks: list[EpisodeTask]):
 def env_metadata(path: str) -> dict:
     """A checkpoint's env metadata, read without building its policy or importing robomimic (a resumed study with
     nothing left to do spent 6-7 of its 10 s importing robomimic for this)."""
-    return read_checkpoint(path)["env_metadata"]
+    return read_checkpoint(path, weights=False)["env_metadata"]
 
 
 def dataset_episodes(name: str, path: str, foods: list[str]) -> list[EpisodeRecord]:

@@ -213,7 +213,8 @@ def _rnn_horizons(specs: dict, rnn_horizon: int | None) -> dict[str, int]:
         return {}
     if int(rnn_horizon) < 1:
         raise ValueError(f"rnn horizon must be a positive integer, got {rnn_horizon}")
-    recurrent = [n for n, s in specs.items() if s.kind == "checkpoint" and rnn_horizon_of(read_checkpoint(s.target))]
+    checkpoints = {n: s.target for n, s in specs.items() if s.kind == "checkpoint"}
+    recurrent = [n for n, path in checkpoints.items() if rnn_horizon_of(read_checkpoint(path, weights=False))]
     if not recurrent:
         raise ValueError(
             "an rnn horizon applies to recurrent checkpoints (BC-RNN: algo.rnn.enabled), and no agent is one"

@@ -4,13 +4,19 @@ program reading only a checkpoint's metadata or checking its keys need not pay."
 
 import json
 import os
+import zipfile
 
 
-def read_checkpoint(path: str) -> dict:
-    """The checkpoint's dict (its algo_name, config, env_metadata, shape_metadata and model), tensors on the CPU."""
+def read_checkpoint(path: str, weights: bool = True) -> dict:
+    """The checkpoint's dict (its algo_name, config, env_metadata, shape_metadata and model), tensors on the CPU.
+
+    ``weights=False``, for a reader of its metadata only: the model's tensors are mapped from the file, not read (a
+    Diffusion Policy checkpoint holds 527 MB of them: 0.4 s to read from the page cache and 2 s from disk, against
+    0.02-0.04 s to map). A file of torch's legacy format, which cannot be mapped, is read whole."""
     import torch  # heavy: torch, only when a checkpoint is read
 
-    return torch.load(os.path.expanduser(path), map_location="cpu")
+    path = os.path.expanduser(path)
+    return torch.load(path, map_location="cpu", mmap=not weights and zipfile.is_zipfile(path))
 
 
 def config_rnn_horizon(config: dict) -> int | None:

@@ -243,7 +243,7 @@ CHECKPOINT_KEYS = ("algo_name", "config", "env_metadata", "shape_metadata", "mod
 def _checkpoint(path: str) -> None:
     """A robomimic checkpoint: what robomimic's loader reads as a dict with the keys its tools use."""
     try:
-        checkpoint = read_checkpoint(path)
+        checkpoint = read_checkpoint(path, weights=False)
     except Exception as error:  # noqa: BLE001 - torch raises many kinds for a bad file; each is named
         raise ValueError(f"torch cannot read it: {type(error).__name__}: {one_line(error)}") from None
     if not isinstance(checkpoint, dict):
