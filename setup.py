@@ -56,8 +56,8 @@ setup(
     extras_require={
         # pytest-timeout: make test gives each test a deadline, so a hung test fails with its stack, not a hung CI
         # ruff pinned: make test checks the tree's formatting, and the formatter's output moves between releases
-        # pytest pinned below 9.2: on 9.2.0 pytest-xdist 3.8.0's --dist loadgroup silently stops grouping
-        # (pytest-dev/pytest-xdist#1386), and make test relies on it (tests/conftest.py checks it)
+        # pytest pinned to 9.1.1: on 9.2.0 pytest-xdist 3.8.0's --dist loadgroup silently stops grouping
+        # (pytest-dev/pytest-xdist#1386), and make test relies on it (tests/test_make_test.py checks it)
         "test": ["pytest==9.1.1", "pytest-xdist==3.8.0", "pytest-timeout==2.4.0", "ruff==0.17.6"],
         # ray: --ray of veragmil-collect, veragmil-evaluate and veragmil-study (veragmil_suite.utils.distributed)
         "ray": [f"ray=={RAY_VERSION}"],
