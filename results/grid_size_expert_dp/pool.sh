@@ -3,7 +3,7 @@
 # seed of expert BC, BC-RNN and BCQ on the same observations and demos (../grid_size_expert_bc/,
 # ../grid_size_expert_bcrnn/, ../grid_size_expert_bcq/: the same recording, the same Intel hosts' piles), with the
 # expert operator (../grid_mended_operators/) and with spacemouse Diffusion Policy (../grid_size_spacemouse_dp/, its
-# seeds 1-2: VR-like against 3D-mouse data, the paper's claim): compare/paired.md. Reads only committed files; run
+# seeds 1-3: VR-like against 3D-mouse data, the paper's claim): compare/paired.md. Reads only committed files; run
 # from the repository root.
 set -euo pipefail
 export PATH=$PWD/.venv/bin:$PATH
@@ -19,7 +19,7 @@ for s in 1 2 3; do
   A+=(--agent "expert BCQ seed $s=${G}_bcq/results.json:expert BCQ $O seed $s")
   A+=(--paired "expert operator" "expert DP seed $s")
 done
-for s in 1 2; do
+for s in 1 2 3; do
   A+=(--agent "spacemouse DP seed $s=results/grid_size_spacemouse_dp/results.json:$M seed $s")
 done
 # the recipes seed by seed (every seed both have), and the seeds against each other

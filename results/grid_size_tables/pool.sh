@@ -16,7 +16,7 @@ add grid_mended_operators "spacemouse operator"
 add grid_size_spacemouse_bc "spacemouse BC no-load-size obs no-noops"
 add grid_size_spacemouse_bcrnn "spacemouse BC-RNN no-load-size obs no-noops"  # training seeds 1-3
 add grid_size_spacemouse_bcq_intel "spacemouse BCQ no-load-size obs no-noops"
-add grid_size_spacemouse_dp "spacemouse Diffusion Policy no-load-size obs no-noops"  # training seeds 1-2 (CPU-trained)
+add grid_size_spacemouse_dp "spacemouse Diffusion Policy no-load-size obs no-noops"  # training seeds 1-3 (CPU-trained)
 # the paper's questions bowl by bowl, seed by seed (paired.md): VR-like against 3D-mouse data for each algorithm and
 # the operators, then the paper's order of algorithms on the expert data and on the spacemouse data
 P+=(--paired "spacemouse operator" "expert operator")
