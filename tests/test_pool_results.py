@@ -92,6 +92,32 @@ def test_the_pool_times_the_pieces_behind_its_agents_from_each_source_study(tmp_
     assert f"| evaluate ({tmp_path / 's23'}) | 380.0 |" in (tmp_path / "published" / "RUN.md").read_text()
 
 
+def test_a_pool_of_published_folders_keeps_their_times_and_names_each_seeds_machine(tmp_path):
+    """Seeds scored on two kinds of CPU, each published, then pooled from the published folders (a later seed joining
+    a committed results/ folder): the pool keeps each folder's timed pieces and its RUN.md names each machine with the
+    seeds it scored."""
+    published = []
+    for seed, cpu in [(1, "Intel Xeon"), (2, "AMD EPYC")]:
+        study = tmp_path / f"s{seed}"
+        _evaluation(study / "eval" / "results.json", {"expert BC": seed}, host={"cpu": cpu, "cores": 2})
+        (study / "timings.json").write_text(json.dumps({"train expert_BC": 800.0 + seed, "evaluate": 400.0 + seed}))
+        publish(study, tmp_path / "results" / f"seed{seed}", f"study {seed}")
+        published.append(tmp_path / "results" / f"seed{seed}" / "results.json")
+    out = tmp_path / "pooled" / "eval"
+    agents = [f"expert BC seed {s}={published[s - 1]}:expert BC" for s in (1, 2)]
+    assert main([str(out), "--agent", agents[0], "--agent", agents[1]]) == 0
+    timings = json.loads((out / "timings.json").read_text())
+    assert timings[f"evaluate ({tmp_path / 'results' / 'seed2'})"] == 402.0
+    assert timings[f"train expert_BC ({tmp_path / 'results' / 'seed1'})"] == 801.0
+    config = json.loads((out / "results.json").read_text())["config"]
+    assert config["hosts"] == {"expert BC seed 1": {"cpu": "Intel Xeon", "cores": 2},
+                               "expert BC seed 2": {"cpu": "AMD EPYC", "cores": 2}}  # fmt: skip
+    publish(tmp_path / "pooled", tmp_path / "results" / "pooled", "pool")
+    run_md = (tmp_path / "results" / "pooled" / "RUN.md").read_text()
+    assert "- cpu Intel Xeon, cores 2: expert BC seed 1\n- cpu AMD EPYC, cores 2: expert BC seed 2\n" in run_md
+    assert "which published" not in run_md
+
+
 def test_an_agents_rnn_horizon_comes_with_it_into_the_pool_and_its_seed_tables(tmp_path):
     """A BC-RNN scored with --rnn-horizon keeps that setting under its new name; the others have none."""
     reset = _evaluation(tmp_path / "h20.json", {"BC-RNN": 3, "expert BC": 1}, rnn_horizon={"BC-RNN": 20})

@@ -38,7 +38,7 @@ def test_run_md_lists_only_the_pieces_behind_its_models(tmp_path):
     }
     dest = tmp_path / "results" / "four_seeds"
     written = publish(_study(tmp_path, agents, timings), dest, "veragmil-study --output-dir x")
-    assert written == ["table.md", "results.json", "RUN.md"]
+    assert written == ["table.md", "results.json", "timings.json", "RUN.md"]
     run_md = (dest / "RUN.md").read_text()
     table = run_md.split("|---|---:|\n")[1].split("\n\n")[0]
     assert [row.split(" | ")[0].removeprefix("| ") for row in table.splitlines()] == [
@@ -50,6 +50,23 @@ def test_run_md_lists_only_the_pieces_behind_its_models(tmp_path):
         "evaluate (seeds 2-3)",
     ]
     assert "veragmil-study --output-dir x" in run_md and "mujoco 3.8.1" in run_md
+    # the pieces' times stay beside results.json, where a pool of this folder finds them
+    assert list(json.loads((dest / "timings.json").read_text())) == [
+        row.split(" | ")[0].removeprefix("| ") for row in table.splitlines()
+    ]
+    # an evaluation that recorded no host: this machine's, said to be the publisher's
+    assert "(this machine, which published the folder: its evaluation recorded none)" in run_md
+
+
+def test_run_md_names_the_machine_that_scored_the_episodes_not_the_publisher(tmp_path):
+    study = _study(tmp_path, {"expert operator": "expert:expert"}, {})
+    results = json.loads((study / "eval" / "results.json").read_text())
+    results["config"]["host"] = {"cpu": "Scoring CPU", "cores": 2}
+    (study / "eval" / "results.json").write_text(json.dumps(results))
+    publish(study, tmp_path / "dest", "cmd")
+    run_md = (tmp_path / "dest" / "RUN.md").read_text()
+    assert "Host: cpu Scoring CPU, cores 2\n" in run_md and "which published" not in run_md
+    assert not (tmp_path / "dest" / "timings.json").exists()  # no piece timed: nothing to keep
 
 
 def test_an_unfinished_study_is_refused_by_name(tmp_path):

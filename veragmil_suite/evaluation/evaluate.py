@@ -42,7 +42,7 @@ from veragmil_suite.learning.checkpoints import read_checkpoint, rnn_horizon_of
 from veragmil_suite.models.humanoid import check_robot
 from veragmil_suite.utils.canonical import canonical
 from veragmil_suite.utils.distributed import Resources, WorkerLost, ray_session, run_pieces
-from veragmil_suite.utils.host import outcome_platform, versions
+from veragmil_suite.utils.host import host, outcome_platform, versions
 from veragmil_suite.utils.numbers import seed_span_problem
 from veragmil_suite.utils.whole_files import append_line, json_lines, write_text_whole
 
@@ -180,6 +180,7 @@ def evaluate(
         episodes_run=episodes_run,
         episodes_journaled=journaled,
         versions=versions(),
+        host=host(),  # the machine that drove the evaluation (and, without Ray, ran its episodes)
     )
     if rnn_horizons:  # only when asked: the recurrent agents' reset period, by agent
         config["rnn_horizon"] = rnn_horizons

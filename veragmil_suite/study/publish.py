@@ -59,8 +59,9 @@ def _study_folder(results_json: Path) -> Path:
 
 
 def study_timings(results_json: Path) -> dict[str, float]:
-    """The wall times of the run that wrote ``results_json``: the timings.json beside it (a pooled evaluation's) or
-    in the study folder above its eval/ (a study's); empty when neither is there (a published results/ folder)."""
+    """The wall times of the run that wrote ``results_json``: the timings.json beside it (a pooled evaluation's, a
+    published results/ folder's) or in the study folder above its eval/ (a study's); empty when neither is there (a
+    folder published before publish kept them), so a pool of published folders keeps the times behind its agents."""
     for folder in dict.fromkeys([results_json.parent, _study_folder(results_json)]):
         if (folder / "timings.json").is_file():
             return json.loads((folder / "timings.json").read_text())
@@ -87,6 +88,36 @@ def pooled_timings(config: dict) -> dict[str, float]:
     return merged
 
 
+def _described(machine: dict) -> str:
+    return ", ".join(f"{k} {v}" for k, v in machine.items())
+
+
+def host_lines(config: dict) -> list[str]:
+    """Where the evaluation's episodes were scored: its own ``host``, or a pool's ``hosts`` by agent, each machine
+    with the agents it scored when they differ (a results/ folder pooled from seeds scored on two kinds of CPU names
+    both). Evaluations from before results recorded a host name this machine, which published them, and say so."""
+    agents = list(config.get("agents", {}))
+    if config.get("host"):
+        return ["Host: " + _described(config["host"])]
+    scored = config.get("hosts", {})
+    by_machine: dict[str, list[str]] = {}
+    for agent in agents:
+        if agent in scored:
+            by_machine.setdefault(_described(scored[agent]), []).append(agent)
+    if not by_machine:
+        return [
+            "Host: " + _described(host()) + " (this machine, which published the folder: its evaluation recorded none)"
+        ]
+    unknown = [agent for agent in agents if agent not in scored]
+    if unknown:
+        by_machine["not recorded (scored before evaluations recorded their host)"] = unknown
+    if len(by_machine) == 1:
+        return ["Host: " + next(iter(by_machine))]
+    return ["Hosts (the machines that scored each model's episodes):", ""] + [
+        f"- {machine}: {', '.join(names)}" for machine, names in by_machine.items()
+    ]
+
+
 def publish(study_dir: Path, dest: Path, command: str) -> list[str]:
     """
     Copies the study's eval outputs and timings to ``dest`` and writes RUN.md; returns the files written.
@@ -107,6 +138,9 @@ def publish(study_dir: Path, dest: Path, command: str) -> list[str]:
     timings = study_timings(eval_dir / "results.json")
     config = json.loads((eval_dir / "results.json").read_text())["config"]
     timings = own_timings(timings, config.get("agents", {}))
+    if timings:  # beside results.json, where a later pool of this folder finds them (study_timings)
+        write_text_whole(dest / "timings.json", json.dumps(timings, indent=2) + "\n")
+        written.append("timings.json")
     lines = [
         f"# {dest.name}",
         "",
@@ -116,16 +150,16 @@ def publish(study_dir: Path, dest: Path, command: str) -> list[str]:
         command,
         "```",
         "",
-        "Host: " + ", ".join(f"{k} {v}" for k, v in host().items()),
+        *host_lines(config),
         "",
-        "Versions: " + ", ".join(f"{k} {v}" for k, v in config.get("versions", {}).items()),
+        "Versions: " + _described(config.get("versions", {})),
         "",
         "Evaluation: "
         + ", ".join(f"{k} {config[k]}" for k in ("episodes", "seed", "horizon", "success_hold_s") if k in config),
         "",
-        "Wall times (s, this machine, the pieces behind this folder's models: their training, the recording of their"
-        " data, the evaluation; a piece a study skipped keeps the time of the run that performed it, and the"
-        " evaluation sums the runs that added episodes to it):",
+        "Wall times (s, each piece timed where it ran; the pieces behind this folder's models: their training, the"
+        " recording of their data, the evaluation; a piece a study skipped keeps the time of the run that performed"
+        " it, and the evaluation sums the runs that added episodes to it):",
         "",
         "| piece | seconds |",
         "|---|---:|",

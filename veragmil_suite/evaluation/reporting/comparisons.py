@@ -278,6 +278,7 @@ def pool(choices: list[tuple[str, Path, str]]) -> tuple[EvaluationResult, list[d
     agents: dict[str, str] = {}
     sources: dict[str, str] = {}
     rnn_horizons: dict[str, int] = {}
+    hosts: dict[str, dict] = {}
     piles: dict[tuple, tuple[str, str]] = {}
     reference: tuple[Path, dict] | None = None
     for name, source, agent in choices:
@@ -308,6 +309,9 @@ def pool(choices: list[tuple[str, Path, str]]) -> tuple[EvaluationResult, list[d
         sources[name] = f"{source}:{agent}"
         if agent in config.get("rnn_horizon", {}):  # its LSTM's reset period, when the evaluation set it
             rnn_horizons[name] = config["rnn_horizon"][agent]
+        scored_on = config.get("hosts", {}).get(agent) or config.get("host")
+        if scored_on:  # the machine that scored it, where its evaluation recorded one
+            hosts[name] = scored_on
         chosen = [
             replace(EpisodeRecord.from_dict(e, config.get("env_kwargs")), agent=name)
             for e in loaded[source]["episodes"]
@@ -318,6 +322,8 @@ def pool(choices: list[tuple[str, Path, str]]) -> tuple[EvaluationResult, list[d
     config = {k: reference[1][k] for k in SHARED_SETTINGS if k in reference[1]}
     if rnn_horizons:
         config["rnn_horizon"] = rnn_horizons
+    if hosts:
+        config["hosts"] = hosts
     result = EvaluationResult(
         episodes=episodes,
         agents=list(agents),
