@@ -571,7 +571,9 @@ def test_an_rnn_horizon_that_is_no_count_or_has_no_recurrent_agent_exits_2(tmp_p
 def test_a_journaled_episode_on_a_pile_no_longer_drawn_runs_again(tmp_path):
     out = tmp_path / "eval"
     run = dict(foods=["pasta"], episodes=2, processes=1, horizon=4, env_kwargs=CHEAP, output_dir=str(out))
-    first = evaluate({"expert": "expert"}, **run, progress=False)
+    timed = []  # on_episode: once per episode scored, with the episodes journaled before the run
+    first = evaluate({"expert": "expert"}, **run, progress=False, on_episode=timed.append)
+    assert timed == [0, 0]
     piles = [e.pile for e in first.episodes]
     assert all(re.fullmatch("[0-9a-f]{24}", p) for p in piles)
     # as if the lattice had changed since episode 0 ran: its record names a pile this code does not build
@@ -582,7 +584,8 @@ def test_a_journaled_episode_on_a_pile_no_longer_drawn_runs_again(tmp_path):
     entry["record"]["pile"] = "0" * 24
     journal.write_text("\n".join([json.dumps(entry), *lines[1:]]) + "\n")
     said = []
-    again = evaluate({"expert": "expert"}, **run, progress=False, resume=True, say=said.append)
+    again = evaluate({"expert": "expert"}, **run, progress=False, resume=True, say=said.append, on_episode=timed.append)
+    assert timed == [0, 0, 2]
     assert any("1 episodes journaled" in s and "no longer draws" in s for s in said)
     assert any("skipping 1 evaluation episodes" in s and "; 1 to run" in s for s in said)
     assert [e.pile for e in again.episodes] == piles

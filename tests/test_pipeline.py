@@ -311,6 +311,9 @@ def test_a_killed_study_resumes_and_skips_every_finished_piece(tmp_path):
     first.wait()
     journaled = len([line for line in journal.read_text().splitlines() if line.endswith("}")])
     assert journaled >= 2
+    # the killed run noted its evaluation's time episode by episode: the resumed run adds its own to it
+    killed = json.loads((out / "timings.json").read_text())["evaluate"]
+    assert killed > 0
     checkpoints = sorted((out / "runs").glob("expert_bc_*/*/models/*.pth"))
     assert len(checkpoints) == 4  # 2 demo counts x checkpoints at 5 and 10 steps
 
@@ -323,6 +326,7 @@ def test_a_killed_study_resumes_and_skips_every_finished_piece(tmp_path):
     for demos in (1, 2):
         assert f"skipping training expert_bc_{demos}demos_10steps_obs-no-load-size" in said
     assert f"skipping {journaled} evaluation episodes" in said
+    assert json.loads((out / "timings.json").read_text())["evaluate"] > killed
     assert sorted((out / "runs").glob("expert_bc_*/*/models/*.pth")) == checkpoints  # not trained again
     results = json.loads((out / "eval" / "results.json").read_text())
     agents = {e["agent"] for e in results["episodes"]}

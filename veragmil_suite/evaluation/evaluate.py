@@ -65,6 +65,7 @@ def evaluate(
     robot: str | None = None,
     policy_device: str = "cpu",
     rnn_horizon: int | None = None,
+    on_episode: Callable[[int], None] | None = None,
 ) -> EvaluationResult:
     """
     Scores each agent (name -> SPEC, see parse_spec) for ``episodes`` episodes per food, env seeds ``seed + i``.
@@ -84,7 +85,9 @@ def evaluate(
     the outputs are written here as episodes end. Their checkpoints' networks run on ``policy_device`` (POLICY_DEVICES).
     With ``rnn_horizon`` the recurrent checkpoints (BC-RNN) reset their hidden state every ``rnn_horizon`` steps instead
     of their config's ``algo.rnn.horizon`` (robomimic's BC-RNN resets it every ``train.seq_length`` steps by default);
-    the others run as they are.
+    the others run as they are. ``on_episode(journaled)`` runs after each episode this run scores and journals, with
+    the number of episodes the journal held before this run: a caller that times the evaluation as it goes keeps the
+    time of a run killed before its end (veragmil-study's timings.json).
 
     Raises:
         ValueError: [unknown food, bad agent SPEC, non-positive sizes, videos without output_dir, checkpoints of
@@ -160,7 +163,8 @@ def evaluate(
     episodes_run = len(tasks)
     if tasks:
         with ray_session(ray) as address:
-            records += _run_parallel(tasks, int(processes), progress, journal, on_ray=address is not None)
+            done = (lambda: on_episode(journaled)) if on_episode is not None else None
+            records += _run_parallel(tasks, int(processes), progress, journal, address is not None, done)
     order = {name: i for i, name in enumerate(specs)}
     records.sort(key=lambda r: (order[r.agent], foods.index(r.food), r.episode))
     horizon, env_kwargs = _recorded_settings(specs, metas, horizon, dict(env_kwargs or {}))
@@ -352,10 +356,15 @@ class Journal:
 
 
 def _run_parallel(
-    tasks: list[EpisodeTask], processes: int, progress: bool, journal: Journal | None = None, on_ray: bool = False
+    tasks: list[EpisodeTask],
+    processes: int,
+    progress: bool,
+    journal: Journal | None = None,
+    on_ray: bool = False,
+    on_episode: Callable[[], None] | None = None,
 ) -> list[EpisodeRecord]:
     """Runs the tasks in ``processes`` fresh worker processes, or as Ray tasks on the piles settled here, journaling
-    each record as it arrives; the first failure stops the run and is raised."""
+    each record as it arrives (then calling ``on_episode``); the first failure stops the run and is raised."""
     piles = driver_piles(tasks) if on_ray else None
     records = []
     pieces = run_pieces(
@@ -373,6 +382,8 @@ def _run_parallel(
                 records.append(record)
                 if journal is not None:
                     journal.add(task, record)
+                if on_episode is not None:
+                    on_episode()
                 bar.update(1)
         except EvaluationError as error:
             bar.write(f"evaluation failed, stopping the workers: {error}")

@@ -169,8 +169,16 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True, verbose: boo
         env_kwargs = {"physics": settings.physics}
         if settings.n_grains is not None:
             env_kwargs["n_grains"] = settings.n_grains
+        # the evaluation's time over its pieces: a run that adds episodes to a journal (another seed, a resumed kill)
+        # adds its time to the earlier runs'; a fully journaled evaluation keeps theirs; a fresh journal starts anew.
+        # Noted after each episode, so a run killed mid-way leaves the time it spent.
+        before = timings.get("evaluate", 0.0)
         start = time.perf_counter()
-        kwargs = dict(env_kwargs=env_kwargs, rnn_horizon=settings.rnn_horizon)
+
+        def timed(journaled: int) -> None:
+            note("evaluate", (before if journaled else 0.0) + time.perf_counter() - start)
+
+        kwargs = dict(env_kwargs=env_kwargs, rnn_horizon=settings.rnn_horizon, on_episode=timed)
         result = evaluate(
             agents,
             foods=settings.eval_foods,
@@ -186,11 +194,8 @@ def run_pipeline(settings: PipelineSettings, progress: bool = True, verbose: boo
             robot=settings.robot,
             **kwargs,
         )
-    # the evaluation's time over its pieces: a run that added episodes to a journal (another seed, a resumed kill)
-    # adds its time to the earlier runs'; a fully journaled evaluation keeps theirs; a fresh journal starts anew
     if result.config["episodes_run"]:
-        earlier = timings.get("evaluate", 0.0) if result.config["episodes_journaled"] else 0.0
-        note("evaluate", earlier + time.perf_counter() - start)
+        timed(result.config["episodes_journaled"])
     eval_dir = out / "eval"
     if len(settings.demos_per_food) > 1 or settings.sweeps_steps:
         write_learning_curves(result, points, eval_dir)
