@@ -22,6 +22,7 @@ from veragmil_suite.controllers.scoop_config import (
 )
 from veragmil_suite.environments.arguments import check_arguments, check_grain_count
 from veragmil_suite.environments.pile_variants import PileVariantsMixin
+from veragmil_suite.environments.render_context import RenderContextMixin
 from veragmil_suite.environments.settling import settle
 from veragmil_suite.environments.start_pose import StartPoseMixin
 from veragmil_suite.environments.task_state import (
@@ -55,7 +56,7 @@ from veragmil_suite.utils.kinematics import quat_mul_wxyz
 from veragmil_suite.utils.sim_xml import keep_sim_xml
 
 
-class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, ManipulationEnv):
+class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, RenderContextMixin, ManipulationEnv):
     """
     This class corresponds to scooping granular food (rice, buckwheat, barley, pasta, peas, beans, flakes) from a
     bowl with a spoon, and carrying the spoonful to a post-scoop pose without spilling, for a single robot arm.
@@ -375,6 +376,7 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
         """
         self.robots[0].init_qpos = self._pre_scoop_qpos()
         super()._reset_internal()
+        self._remember_render_context()
         use_block_mass_matrix(self.robots[0])
         leave_heading_free(self.robots[0].part_controllers[SPOON_ARM])
         self._metrics_time = None
@@ -479,6 +481,7 @@ class ScoopGranular(TaskStateMixin, StartPoseMixin, PileVariantsMixin, Manipulat
 
     def _initialize_sim(self, xml_string=None):
         super()._initialize_sim(xml_string)
+        self._keep_render_context()
         self._badqacc_seen = 0
         # a recorded XML runs at the step it was recorded with (datasets keep their own physics), exactly: a saved
         # XML's rounded step is the whole fraction of the control period it was (check_physics_timestep)
