@@ -77,7 +77,6 @@ def adopt_render_context(sim: MjSim, context: MjRenderContext) -> None:
     robosuite's MjRenderContext makes them.
     """
     context.gl_ctx.make_current()
-    mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, context.con)
     context.sim, context.model, context.data = sim, sim.model, sim.data
     context.scn = mujoco.MjvScene(sim.model._model, maxgeom=SCENE_MAX_GEOMS)
     context.cam = mujoco.MjvCamera()
