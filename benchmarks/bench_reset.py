@@ -1,10 +1,12 @@
 """
-Reset cost of ScoopGranular with an offscreen camera: a hard reset that keeps the render context of the last scene
-(veragmil_suite.environments.render_context) against one that makes a new context, as robosuite does, and the ratio.
+Reset cost of ScoopGranular, and the ratios of what it keeps between resets:
+- with an offscreen camera, a hard reset that keeps the render context of the last scene
+  (veragmil_suite.environments.render_context) against one that makes a new context, as robosuite does;
+- without a camera, a reset that takes its grain pile from the process's kept piles
+  (veragmil_suite.environments.pile_variants.pile_variant) against one that builds the pile anew.
 
-Both rebuild the simulation on each reset and draw the same episodes (seeds 0.., so the same pile variants); an
-untimed round of the same resets first settles their piles or reads them from the cache. Without a camera a reset
-makes no render context; its time is printed for reference.
+All rebuild the simulation on each reset and draw the same episodes (seeds 0.., so the same pile variants); an
+untimed round of the same resets first settles their piles or reads them from the cache.
 
     python benchmarks/bench_reset.py                      # rice, 300 grains, 84x84 overhead camera, 10 resets
     python benchmarks/bench_reset.py --food pasta --resets 20
@@ -21,20 +23,24 @@ os.environ["MUJOCO_GL"] = os.environ["PYOPENGL_PLATFORM"] = "osmesa"
 os.environ.setdefault("PYNPUT_BACKEND", "dummy")
 
 # the package imports robosuite: after MUJOCO_GL
+from veragmil_suite.environments.pile_variants import pile_variant  # noqa: E402
 from veragmil_suite.utils import cli  # noqa: E402
 from veragmil_suite.utils.timing import stopwatch  # noqa: E402
 
 CAMERA_SIZE = 84
 
 
-def time_resets(env, resets: int, keep_context: bool) -> float:
-    """Mean wall time (s) of ``resets`` resets of ``env``, keeping its render context or making a new one each."""
+def time_resets(env, resets: int, keep_context: bool = True, keep_piles: bool = True) -> float:
+    """Mean wall time (s) of ``resets`` resets of ``env``, keeping its render context and the built piles or making
+    new ones each."""
     for seed in range(resets):
         env.reset(seed=seed)  # untimed: settles the piles these seeds draw, or reads them
     with stopwatch() as elapsed:
         for seed in range(resets):
             if not keep_context:
                 env._render_context = None  # the next simulation makes a context of its own, as robosuite's does
+            if not keep_piles:
+                pile_variant.cache_clear()
             env.reset(seed=seed)
     return elapsed.wall_s / resets
 
@@ -60,13 +66,16 @@ def main(args: argparse.Namespace) -> int:
     seeing = robosuite.make("ScoopGranular", **common, has_offscreen_renderer=True, use_camera_obs=True, **camera)
     print(f"load average before: {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} {os.getloadavg()[2]:.2f}")
     print(f"{args.food}, {args.n_grains} grains, {args.resets} resets each")
-    no_camera = time_resets(blind, args.resets, keep_context=True)
+    new_piles = time_resets(blind, args.resets, keep_piles=False)
+    no_camera = time_resets(blind, args.resets)
     fresh = time_resets(seeing, args.resets, keep_context=False)
-    kept = time_resets(seeing, args.resets, keep_context=True)
+    kept = time_resets(seeing, args.resets)
     print(f"{'reset':<36} {'ms':>7}")
-    print(f"{'no camera':<36} {no_camera * 1e3:>7.1f}")
+    print(f"{'no camera, piles built anew':<36} {new_piles * 1e3:>7.1f}")
+    print(f"{'no camera, the kept piles':<36} {no_camera * 1e3:>7.1f}")
     print(f"{'camera, a new render context':<36} {fresh * 1e3:>7.1f}")
     print(f"{'camera, the kept render context':<36} {kept * 1e3:>7.1f}")
+    print(f"new piles / kept piles = {new_piles / no_camera:.2f}x")
     print(f"new context / kept context = {fresh / kept:.2f}x")
     print(f"load average after: {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} {os.getloadavg()[2]:.2f}")
     blind.close(), seeing.close()

@@ -12,6 +12,7 @@ from helpers.env import grain_positions, make_env, pinned_mujoco_version
 from veragmil_suite.controllers.scoop_config import load_scoop_controller_config
 from veragmil_suite.environments import scoop as scoop_module
 from veragmil_suite.environments import settling
+from veragmil_suite.environments.pile_variants import pile_variant
 from veragmil_suite.environments.stages import SCOOP_STAGES, StageTracker
 from veragmil_suite.environments.start_pose import POST_SCOOP_EEF_ROT, PRE_SCOOP_EEF_ROT
 from veragmil_suite.learning.robomimic_obs import model_xml
@@ -316,6 +317,24 @@ def test_same_seed_same_xml_and_state_and_exact_replay():
         b.step(act)
         np.testing.assert_array_equal(b.sim.get_state().flatten(), expected)
     a.close(), b.close()
+
+
+def test_a_kept_pile_builds_the_scene_a_new_pile_builds():
+    """A process keeps the piles it built (pile_variant): a scene from a kept pile is the one a new pile gives, and
+    no environment can change a pile another one draws."""
+    env = make_env("rice", n_grains=40, seed=3, pile_variants=2)
+    env.reset(seed=3)
+    kept, xml, state = env.grain_pile, model_xml(env), env.sim.get_state().flatten()
+    assert kept is pile_variant(env.food, 40, env.physics, env.pile_variant)
+    pile_variant.cache_clear()
+    env.reset(seed=3)
+    assert env.grain_pile is not kept
+    assert model_xml(env) == xml
+    np.testing.assert_array_equal(env.sim.get_state().flatten(), state)
+    for array in (kept.sizes, kept.radii, kept.volumes_m3, *kept.mass_properties().values()):
+        with pytest.raises(ValueError, match="read-only"):
+            array[0] = 0.0
+    env.close()
 
 
 def test_bad_input_names_the_problem_and_accepted_values():

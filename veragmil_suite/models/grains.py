@@ -22,7 +22,8 @@ GRAIN_SPIN_DECAY_PER_S = 20.0
 class GrainPile:
     """
     N grains of one food, each a free body, first placed on a jittered lattice inside the bowl without overlap
-    (they settle into a pile afterwards: see veragmil_suite.environments.settling).
+    (they settle into a pile afterwards: see veragmil_suite.environments.settling). Its arrays are read-only: one
+    pile serves every environment of a process that draws it (veragmil_suite.environments.pile_variants).
 
     Args:
         food (FoodSpec): the food
@@ -54,6 +55,7 @@ class GrainPile:
         self.volumes_m3 = np.array([self.grain.piece_volume_m3(s) for s in self.sizes])
         self._orientation_seed = int(rng.integers(2**31))
         self._mass_properties = None
+        _read_only(self.sizes, self.radii, self.volumes_m3)
 
     @property
     def body_names(self) -> list[str]:
@@ -87,6 +89,7 @@ class GrainPile:
                 iquat=model.body_iquat[ids].copy(),
                 inertia=np.maximum(model.body_inertia[ids], floor[:, None]),
             )
+            _read_only(*self._mass_properties.values())
         return self._mass_properties
 
     def bodies(self, home_qpos: np.ndarray | None = None) -> list[ET.Element]:
@@ -246,3 +249,8 @@ def _bounding_radius(geoms: list[dict]) -> float:
             extent = float(size.max())
         radius = max(radius, float(np.linalg.norm(g["pos"])) + extent)
     return radius
+
+
+def _read_only(*arrays: np.ndarray) -> None:
+    for array in arrays:
+        array.setflags(write=False)
