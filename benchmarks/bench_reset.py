@@ -23,7 +23,7 @@ os.environ["MUJOCO_GL"] = os.environ["PYOPENGL_PLATFORM"] = "osmesa"
 os.environ.setdefault("PYNPUT_BACKEND", "dummy")
 
 # the package imports robosuite: after MUJOCO_GL
-from veragmil_suite.environments.pile_variants import pile_variant  # noqa: E402
+from veragmil_suite.environments.pile_variants import kept_pile  # noqa: E402
 from veragmil_suite.utils import cli  # noqa: E402
 from veragmil_suite.utils.timing import stopwatch  # noqa: E402
 
@@ -40,7 +40,7 @@ def time_resets(env, resets: int, keep_context: bool = True, keep_piles: bool = 
             if not keep_context:
                 env._render_context = None  # the next simulation makes a context of its own, as robosuite's does
             if not keep_piles:
-                pile_variant.cache_clear()
+                kept_pile.cache_clear()
             env.reset(seed=seed)
     return elapsed.wall_s / resets
 

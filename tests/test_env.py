@@ -12,7 +12,7 @@ from helpers.env import grain_positions, make_env, pinned_mujoco_version
 from veragmil_suite.controllers.scoop_config import load_scoop_controller_config
 from veragmil_suite.environments import scoop as scoop_module
 from veragmil_suite.environments import settling
-from veragmil_suite.environments.pile_variants import pile_variant
+from veragmil_suite.environments.pile_variants import kept_pile, pile_variant
 from veragmil_suite.environments.stages import SCOOP_STAGES, StageTracker
 from veragmil_suite.environments.start_pose import POST_SCOOP_EEF_ROT, PRE_SCOOP_EEF_ROT
 from veragmil_suite.learning.robomimic_obs import model_xml
@@ -326,7 +326,7 @@ def test_a_kept_pile_builds_the_scene_a_new_pile_builds():
     env.reset(seed=3)
     kept, xml, state = env.grain_pile, model_xml(env), env.sim.get_state().flatten()
     assert kept is pile_variant(env.food, 40, env.physics, env.pile_variant)
-    pile_variant.cache_clear()
+    kept_pile.cache_clear()
     env.reset(seed=3)
     assert env.grain_pile is not kept
     assert model_xml(env) == xml
@@ -334,6 +334,14 @@ def test_a_kept_pile_builds_the_scene_a_new_pile_builds():
     for array in (kept.sizes, kept.radii, kept.volumes_m3, *kept.mass_properties().values()):
         with pytest.raises(ValueError, match="read-only"):
             array[0] = 0.0
+    env.close()
+    # a spec that cannot be a key (a list where the catalog has a tuple) builds its pile each time, as before
+    listed = dataclasses.replace(FOODS["rice"], rgba=[0.9, 0.9, 0.85, 1.0])
+    first, second = pile_variant(listed, 40, "calibrated", 0), pile_variant(listed, 40, "calibrated", 0)
+    assert first is not second
+    np.testing.assert_array_equal(first.sizes, pile_variant(FOODS["rice"], 40, "calibrated", 0).sizes)
+    env = make_env(listed, n_grains=40, seed=3)
+    env.reset()
     env.close()
 
 

@@ -17,13 +17,26 @@ LOADED_PILE_VARIANTS_TRIED = 64
 PILES_KEPT = 64
 
 
-@functools.lru_cache(maxsize=PILES_KEPT)
 def pile_variant(food: FoodSpec, n_grains: int, physics: str, variant: int) -> GrainPile:
     """Pile variant ``variant`` of ``n_grains`` grains of ``food`` in ``physics`` (the same on every machine).
 
     Kept per process: a pile is a pure function of these four, and building one (drawing its grains, compiling the
-    grains-only model its masses come from) took a third of a rice scene's hard reset.
+    grains-only model its masses come from) took a third of a rice scene's hard reset. A food spec that cannot be a
+    key (one holding a list) gets a new pile each time.
     """
+    try:
+        return kept_pile(food, n_grains, physics, variant)
+    except TypeError:
+        return _new_pile(food, n_grains, physics, variant)
+
+
+@functools.lru_cache(maxsize=PILES_KEPT)
+def kept_pile(food: FoodSpec, n_grains: int, physics: str, variant: int) -> GrainPile:
+    """pile_variant's process-wide store (``kept_pile.cache_clear()`` empties it)."""
+    return _new_pile(food, n_grains, physics, variant)
+
+
+def _new_pile(food: FoodSpec, n_grains: int, physics: str, variant: int) -> GrainPile:
     rng = np.random.default_rng([variant, n_grains, *map(ord, food.name)])
     return GrainPile(food, n_grains, rng, physics=physics)
 
