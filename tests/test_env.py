@@ -345,6 +345,33 @@ def test_a_kept_pile_builds_the_scene_a_new_pile_builds():
     env.close()
 
 
+def test_a_piles_remembered_settling_key_is_the_key_of_its_settling_model(monkeypatch):
+    """pile_key remembers a pile's keys: each is the hash of the settling model it would build now, and a change to
+    the bowl, the solver options, the step or SETTLE_VERSION gives that model's key, not a remembered one."""
+    env = make_env("rice", n_grains=40, seed=3)
+    deep = make_env("rice", n_grains=40, seed=3, bowl_shape=dataclasses.replace(DEFAULT_BOWL_SHAPE, depth=0.05))
+    env.reset()
+    pile, option, timestep = env.grain_pile, dict(env.solver_options), float(env.sim.model.opt.timestep)
+
+    def built(bowl, option, timestep):
+        return settling._key(settling.pile_model_xml(bowl, pile, option, timestep))
+
+    cases = [
+        (env.bowl, option, timestep),
+        (env.bowl, option, timestep),
+        (env.bowl, {**option, "iterations": int(option.get("iterations", 40)) + 1}, timestep),
+        (env.bowl, option, timestep / 2),
+        (deep.bowl, option, timestep),
+    ]
+    for bowl, option_, timestep_ in cases:
+        assert settling.pile_key(bowl, pile, option_, timestep_) == built(bowl, option_, timestep_)
+    assert len({built(*case) for case in cases}) == 4
+    remembered = settling.pile_key(env.bowl, pile, option, timestep)
+    monkeypatch.setattr(settling, "SETTLE_VERSION", settling.SETTLE_VERSION + "-changed")
+    assert settling.pile_key(env.bowl, pile, option, timestep) == built(env.bowl, option, timestep) != remembered
+    env.close(), deep.close()
+
+
 def test_bad_input_names_the_problem_and_accepted_values():
     with pytest.raises(ValueError, match="accepted foods: .*rice"):
         make_env("quinoa")
