@@ -22,8 +22,9 @@ GRAIN_SPIN_DECAY_PER_S = 20.0
 class GrainPile:
     """
     N grains of one food, each a free body, first placed on a jittered lattice inside the bowl without overlap
-    (they settle into a pile afterwards: see veragmil_suite.environments.settling). Its arrays are read-only: one
-    pile serves every environment of a process that draws it (veragmil_suite.environments.pile_variants).
+    (they settle into a pile afterwards: see veragmil_suite.environments.settling). Its per-grain arrays (sizes, radii,
+    volumes, mass properties) are read-only: one pile serves every environment of a process that draws it
+    (veragmil_suite.environments.pile_variants).
 
     Args:
         food (FoodSpec): the food
