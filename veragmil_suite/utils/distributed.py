@@ -30,6 +30,9 @@ if TYPE_CHECKING:
 
     from ray import ObjectRef
 
+# what the forkserver imports before it forks a worker: multiprocessing's default (the main module) and the package
+FORKSERVER_PRELOAD = ["__main__", "veragmil_suite"]
+
 Piece = TypeVar("Piece")
 Result = TypeVar("Result")
 
@@ -234,11 +237,18 @@ def _local_piece(function: Callable[[Any, Any], Any], piece: Any) -> Any:
 
 
 class _ProcessBackend(_Backend):
-    """A pool of fresh worker processes (forkserver where there is one), each given the context once."""
+    """A pool of fresh worker processes (forked from a server that imported the package, where the platform has
+    one), each given the context once."""
 
     def __init__(self, function, context, setup, processes: int):
         methods = multiprocessing.get_all_start_methods()
-        mp_context = multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+        if "forkserver" in methods:
+            mp_context = multiprocessing.get_context("forkserver")
+            # workers fork from a server that imported the package once (robosuite, MuJoCo: 1.3 s a worker);
+            # a server already started by an earlier pool of this program keeps what it imported
+            mp_context.set_forkserver_preload(FORKSERVER_PRELOAD)
+        else:
+            mp_context = multiprocessing.get_context("spawn")
         self.function = function
         self.pool = ProcessPoolExecutor(
             max_workers=processes, mp_context=mp_context, initializer=_local_init, initargs=(setup, context)
