@@ -342,6 +342,8 @@ def test_a_kept_pile_builds_the_scene_a_new_pile_builds():
     np.testing.assert_array_equal(first.sizes, pile_variant(FOODS["rice"], 40, "calibrated", 0).sizes)
     env = make_env(listed, n_grains=40, seed=3)
     env.reset()
+    assert env.pile_variant == 0 and env.grain_pile is not first
+    np.testing.assert_array_equal(env.grain_pile.sizes, first.sizes)  # the catalog food's variant 0, grain by grain
     env.close()
 
 
